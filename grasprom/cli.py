@@ -1,0 +1,217 @@
+"""Command-line interface: ``grasprom <subcommand>`` (also ``python -m grasprom``).
+
+Subcommands
+-----------
+sweep
+    Run an FE clamping sweep over wall thickness x material (resumable).
+report
+    Summary table (text + CSV) and force-gap plot of a sweep directory.
+
+Exit codes: 0 success, 1 some case failed, 2 bad input (message on stderr), 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from grasprom import __version__
+
+DEFAULT_SWEEP_DIR = "fe_data/default"
+"""Sweep shipped with the package source, read by ``grasprom report`` by default."""
+
+
+def _build_parser() -> argparse.ArgumentParser:
+    from grasprom.sweep import KNOWN_MATERIALS, spec_defaults
+
+    d = spec_defaults()
+    p = argparse.ArgumentParser(
+        prog="grasprom", description="FE clamping sweeps of a soft tube between rigid jaws."
+    )
+    p.add_argument("--version", action="version", version=f"grasprom {__version__}")
+    sub = p.add_subparsers(dest="command", required=True, metavar="{sweep,report}")
+
+    s = sub.add_parser(
+        "sweep",
+        help="run an FE sweep over thickness x material (resumable)",
+        description="Run the FE clamping grid. Finished cases are written atomically; "
+        "rerunning the same command skips them.",
+    )
+    s.add_argument(
+        "--thickness",
+        required=True,
+        help="wall thickness in mm: start:stop:step (inclusive), a comma list, "
+        "or one value; e.g. 0.8:2.0:0.1",
+    )
+    s.add_argument(
+        "--material",
+        required=True,
+        help=f"comma list of materials from {','.join(KNOWN_MATERIALS)}",
+    )
+    s.add_argument(
+        "--diameter",
+        type=float,
+        default=None,
+        metavar="MM",
+        help=f"outer tube diameter in mm (default {d['diameter_mm']:g})",
+    )
+    s.add_argument(
+        "--jaw-length",
+        type=float,
+        default=None,
+        metavar="MM",
+        help="jaw length along the tube axis in mm, the out-of-plane depth "
+        f"(default {d['jaw_length_mm']:g})",
+    )
+    s.add_argument(
+        "--closed-gap",
+        type=float,
+        default=None,
+        metavar="MM",
+        help=f"final jaw gap in mm (default {d['closed_gap_mm']:g})",
+    )
+    s.add_argument(
+        "--force-cap",
+        type=float,
+        default=None,
+        metavar="N",
+        help=f"stop a case once the jaw force exceeds this, in N (default {d['force_cap_N']:g})",
+    )
+    s.add_argument(
+        "--n-layers",
+        type=int,
+        default=None,
+        metavar="N",
+        help=f"mesh layers through the wall (default {d['n_layers']})",
+    )
+    s.add_argument(
+        "--n-circ",
+        type=int,
+        default=None,
+        metavar="N",
+        help=f"mesh divisions along the quarter circumference (default {d['n_circ']})",
+    )
+    g = s.add_mutually_exclusive_group()
+    g.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="local worker processes (default: CPU count; 1 = in-process)",
+    )
+    g.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDR",
+        help="address of an existing Dask scheduler, e.g. tcp://127.0.0.1:8786",
+    )
+    s.add_argument(
+        "--out", required=True, metavar="DIR", help="sweep directory, e.g. fe_data/<name>"
+    )
+    s.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    r = sub.add_parser("report", help="table and plot of a sweep directory")
+    r.add_argument(
+        "directory",
+        nargs="?",
+        default=DEFAULT_SWEEP_DIR,
+        help=f"sweep directory (default {DEFAULT_SWEEP_DIR})",
+    )
+    r.add_argument(
+        "--out",
+        default="report",
+        metavar="DIR",
+        help="output directory for sweep_table.csv and force_gap.png (default ./report)",
+    )
+    r.add_argument("--logy", action="store_true", help="logarithmic force axis")
+    return p
+
+
+def _error(cmd: str, msg: object) -> int:
+    print(f"grasprom {cmd}: error: {msg}", file=sys.stderr)
+    return 2
+
+
+def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
+    from grasprom.datafiles import CorruptCaseError
+    from grasprom.sweep import SweepInputError, build_grid, default_runner, run_sweep
+
+    try:
+        specs = build_grid(
+            args.thickness,
+            args.material,
+            diameter_mm=args.diameter,
+            jaw_length_mm=args.jaw_length,
+            closed_gap_mm=args.closed_gap,
+            force_cap_N=args.force_cap,
+            n_layers=args.n_layers,
+            n_circ=args.n_circ,
+            out_dir=args.out,
+        )
+        if not args.quiet:
+            print(f"grasprom sweep: {len(specs)} cases -> {args.out}", file=sys.stderr)
+        summary = run_sweep(
+            specs,
+            args.out,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            progress=not args.quiet,
+            runner=runner or default_runner,
+        )
+    except (SweepInputError, CorruptCaseError) as exc:
+        return _error("sweep", exc)
+    except KeyboardInterrupt:
+        print(
+            "grasprom sweep: interrupted; finished cases are kept, rerun the same command "
+            "to resume",
+            file=sys.stderr,
+        )
+        return 130
+    print(summary.format())
+    return 0 if summary.ok else 1
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from grasprom.datafiles import CorruptCaseError
+    from grasprom.report import make_report
+
+    directory = Path(args.directory)
+    if args.directory == DEFAULT_SWEEP_DIR and not directory.is_dir():
+        # not run from the source tree: fall back to the checkout holding this package
+        shipped = Path(__file__).resolve().parents[1] / DEFAULT_SWEEP_DIR
+        if shipped.is_dir():
+            directory = shipped
+    try:
+        files = make_report(directory, args.out, logy=args.logy)
+    except (FileNotFoundError, CorruptCaseError) as exc:
+        return _error("report", exc)
+    print(files.text)
+    print(f"\nwrote {files.table_csv} and {files.plot_png}")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None, *, runner=None) -> int:
+    """Entry point of the ``grasprom`` command.
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        Arguments (default ``sys.argv[1:]``).
+    runner : callable, optional
+        Case runner for ``sweep`` (tests substitute a fake; default the real FE model).
+
+    Returns
+    -------
+    int
+        Exit code: 0 ok, 1 some case failed, 2 bad input, 130 interrupted.
+    """
+    args = _build_parser().parse_args(argv)
+    if args.command == "sweep":
+        return _cmd_sweep(args, runner)
+    return _cmd_report(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,699 @@
+"""On-disk format of FE clamping cases and sweeps.
+
+One case is two files sharing a stem (``{material}_t{thickness_mm:.2f}``, e.g. ``mr_t0.80``):
+
+* ``<stem>.csv`` -- one row per converged load step (columns and units in
+  :data:`COLUMN_UNITS`);
+* ``<stem>.json`` -- the sidecar: case parameters, status, FE record, provenance, the
+  SHA-256 of the CSV bytes and of the inputs.
+
+Both are written atomically (temporary file in the same directory, then :func:`os.replace`),
+the CSV first and the JSON last, so the presence of a JSON sidecar marks a finished case.
+A failed case leaves ``<stem>.error.txt`` instead. A sweep directory also holds a
+``sweep.json`` manifest (see :func:`write_manifest`).
+
+Units: lengths in mm, forces in N, stresses in MPa, times in s.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import hashlib
+import json
+import math
+import os
+import platform
+import re
+import subprocess
+import tempfile
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from grasprom import __version__
+from grasprom.fe_model import CaseResult, CaseSpec
+
+SCHEMA_VERSION = 1
+"""Version of the case sidecar and manifest layout; bump on incompatible change."""
+
+MANIFEST_NAME = "sweep.json"
+"""File name of the sweep manifest inside a sweep directory."""
+
+ERROR_SUFFIX = ".error.txt"
+"""Suffix of the file recording a failed case (``<stem>.error.txt``)."""
+
+VALID_STATUSES = ("complete", "partial")
+"""Statuses a finished case may carry (see :class:`grasprom.fe_model.CaseResult`)."""
+
+REQUIRED_COLUMNS = (
+    "gap_mm",
+    "jaw_displacement_mm",
+    "force_N",
+    "force_per_length_N_per_mm",
+    "contact_width_mm",
+    "peak_pressure_MPa",
+    "min_J",
+)
+"""Columns every case CSV must hold."""
+
+COLUMN_UNITS = {
+    "gap_mm": "mm",
+    "jaw_displacement_mm": "mm",
+    "force_N": "N",
+    "force_per_length_N_per_mm": "N/mm",
+    "contact_width_mm": "mm",
+    "peak_pressure_MPa": "MPa",
+    "mean_pressure_MPa": "MPa",
+    "inner_contact_width_mm": "mm",
+    "min_J": "1",
+    "newton_iterations": "1",
+}
+"""Units of the known CSV columns (``"1"`` = dimensionless)."""
+
+SPEC_UNITS = {
+    "thickness_mm": "mm",
+    "diameter_mm": "mm",
+    "jaw_length_mm": "mm",
+    "closed_gap_mm": "mm",
+    "force_cap_N": "N",
+    "wall_time_s": "s",
+}
+"""Units of the scalar sidecar keys."""
+
+_STEM_RE = re.compile(r"^(?P<material>[A-Za-z0-9]+)_t(?P<thickness>\d+\.\d+)$")
+
+
+class CorruptCaseError(Exception):
+    """A case file on disk is unreadable or inconsistent.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The offending file.
+    reason : str
+        What is wrong with it.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], reason: str) -> None:
+        self.path = Path(path)
+        self.reason = reason
+        super().__init__(
+            f"corrupt case file {self.path}: {reason} "
+            "(the file was left untouched; move it away or repair it, then rerun)"
+        )
+
+    def __reduce__(self):  # keep picklable despite the custom signature
+        return (type(self), (str(self.path), self.reason))
+
+
+@dataclass(frozen=True)
+class CaseFiles:
+    """Paths of one case's files.
+
+    Attributes
+    ----------
+    csv : pathlib.Path
+        ``<stem>.csv``, one row per load step.
+    json : pathlib.Path
+        ``<stem>.json`` sidecar.
+    """
+
+    csv: Path
+    json: Path
+
+
+@dataclass(frozen=True)
+class LoadedCase:
+    """A validated case read back from disk.
+
+    Attributes
+    ----------
+    meta : dict
+        The parsed JSON sidecar.
+    table : pandas.DataFrame
+        The load-step table (units in ``meta["units"]``).
+    files : CaseFiles
+        Where it was read from.
+    """
+
+    meta: dict
+    table: pd.DataFrame
+    files: CaseFiles
+
+
+# --------------------------------------------------------------------------- naming / hashing
+
+
+def case_stem(material: str, thickness_mm: float) -> str:
+    """File stem of a case, ``{material}_t{thickness_mm:.2f}``.
+
+    Parameters
+    ----------
+    material : str
+        Material key (``"mr"``, ``"nh"``, ``"le"``).
+    thickness_mm : float
+        Wall thickness in mm.
+
+    Returns
+    -------
+    str
+        E.g. ``"mr_t0.80"``.
+    """
+    return f"{material}_t{thickness_mm:.2f}"
+
+
+def spec_stem(spec: CaseSpec) -> str:
+    """File stem of a :class:`~grasprom.fe_model.CaseSpec` (see :func:`case_stem`)."""
+    return case_stem(spec.material, spec.thickness_mm)
+
+
+def parse_stem(stem: str) -> tuple[str, float] | None:
+    """Invert :func:`case_stem`.
+
+    Returns
+    -------
+    tuple of (str, float) or None
+        ``(material, thickness_mm)``, or None if ``stem`` is not a case stem.
+    """
+    m = _STEM_RE.match(stem)
+    if m is None:
+        return None
+    return m["material"], float(m["thickness"])
+
+
+def case_files(directory: str | os.PathLike[str], stem: str) -> CaseFiles:
+    """Paths of the case ``stem`` inside ``directory``."""
+    d = Path(directory)
+    return CaseFiles(csv=d / f"{stem}.csv", json=d / f"{stem}.json")
+
+
+def _json_default(obj: Any) -> Any:
+    """Make numpy scalars/arrays, paths and dataclasses JSON-serialisable."""
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return dataclasses.asdict(obj)
+    if isinstance(obj, Path):
+        return str(obj)
+    if hasattr(obj, "tolist"):  # numpy scalar or array
+        return obj.tolist()
+    if isinstance(obj, (set, frozenset)):
+        return sorted(obj)
+    raise TypeError(f"object of type {type(obj).__name__} is not JSON serialisable")
+
+
+def canonical_json(obj: Any) -> str:
+    """Deterministic compact JSON (sorted keys) used for hashing."""
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"), default=_json_default)
+
+
+def sha256_bytes(data: bytes) -> str:
+    """Hex SHA-256 of ``data``."""
+    return hashlib.sha256(data).hexdigest()
+
+
+def sha256_file(path: str | os.PathLike[str]) -> str:
+    """Hex SHA-256 of a file's bytes."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def input_hash(spec: CaseSpec) -> str:
+    """Hash of a case's inputs: SHA-256 of the canonical JSON of ``asdict(spec)``.
+
+    Two specs with equal fields (material, geometry, mesh, solver settings) hash equally;
+    this is what a resumed sweep compares against the finished files on disk.
+    """
+    return sha256_bytes(canonical_json(dataclasses.asdict(spec)).encode())
+
+
+# --------------------------------------------------------------------------- provenance
+
+
+def package_versions() -> dict[str, str | None]:
+    """Versions of grasprom, numpy, scipy, scikit-fem, pandas and Python.
+
+    Returns
+    -------
+    dict
+        ``{"grasprom": ..., "numpy": ..., "scipy": ..., "skfem": ..., "pandas": ...,
+        "python": ...}``; None for a package that cannot be imported.
+    """
+    import importlib
+
+    out: dict[str, str | None] = {"grasprom": __version__}
+    for name in ("numpy", "scipy", "skfem", "pandas"):
+        try:
+            out[name] = str(importlib.import_module(name).__version__)
+        except Exception:  # noqa: BLE001 - best effort provenance
+            out[name] = None
+    out["python"] = platform.python_version()
+    return out
+
+
+def git_revision() -> dict[str, Any]:
+    """Git revision of the repository holding the grasprom package (best effort).
+
+    Only reported when the package directory is inside a git work tree whose top level
+    holds a ``pyproject.toml`` (i.e. a source checkout, not a site-packages install).
+
+    Returns
+    -------
+    dict
+        ``{"git_revision": str | None, "git_dirty": bool | None}``.
+    """
+    pkg_dir = Path(__file__).resolve().parent
+    none: dict[str, Any] = {"git_revision": None, "git_dirty": None}
+
+    def _git(*args: str) -> str | None:
+        try:
+            p = subprocess.run(
+                ["git", "-C", str(pkg_dir), *args],
+                capture_output=True,
+                text=True,
+                timeout=10,
+                check=False,
+            )
+        except (OSError, subprocess.SubprocessError):
+            return None
+        return p.stdout.strip() if p.returncode == 0 else None
+
+    top = _git("rev-parse", "--show-toplevel")
+    if not top or not (Path(top) / "pyproject.toml").is_file():
+        return none
+    rev = _git("rev-parse", "HEAD")
+    if rev is None:
+        return none
+    status = _git("status", "--porcelain", "--untracked-files=no")
+    return {"git_revision": rev, "git_dirty": None if status is None else bool(status)}
+
+
+def provenance() -> dict[str, Any]:
+    """Versions and git revision, computed once per sweep and stored in every sidecar."""
+    return {"versions": package_versions(), **git_revision()}
+
+
+def _now() -> str:
+    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+
+
+# --------------------------------------------------------------------------- atomic writes
+
+
+def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically.
+
+    The bytes go to a temporary file in the same directory, are flushed and fsync'ed, and
+    the file is renamed over ``path`` with :func:`os.replace`; a reader (or a killed
+    writer) sees either the old file or the complete new one.
+    """
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
+def atomic_write_json(path: str | os.PathLike[str], obj: Any) -> None:
+    """Atomically write ``obj`` as indented JSON (see :func:`atomic_write_bytes`)."""
+    text = json.dumps(obj, indent=2, sort_keys=False, default=_json_default, allow_nan=True)
+    atomic_write_bytes(path, (text + "\n").encode())
+
+
+# --------------------------------------------------------------------------- cases
+
+
+def write_case(
+    directory: str | os.PathLike[str],
+    spec: CaseSpec,
+    result: CaseResult,
+    *,
+    wall_time_s: float | None = None,
+    prov: Mapping[str, Any] | None = None,
+) -> CaseFiles:
+    """Write one finished case: the CSV first, then the JSON sidecar, both atomically.
+
+    Parameters
+    ----------
+    directory : str or os.PathLike
+        Sweep directory (must exist).
+    spec : CaseSpec
+        The inputs of the case.
+    result : CaseResult
+        The FE result; ``result.table`` must hold :data:`REQUIRED_COLUMNS` and
+        ``result.status`` must be one of :data:`VALID_STATUSES`.
+    wall_time_s : float, optional
+        Wall time of the solve in s (default ``result.info["wall_time_s"]`` if present).
+    prov : mapping, optional
+        Output of :func:`provenance` (computed here if omitted).
+
+    Returns
+    -------
+    CaseFiles
+        Paths written.
+
+    Raises
+    ------
+    ValueError
+        If the result lacks required columns or has an unknown status (nothing is written).
+    """
+    stem = spec_stem(spec)
+    files = case_files(directory, stem)
+    table = result.table
+    missing = [c for c in REQUIRED_COLUMNS if c not in table.columns]
+    if missing:
+        raise ValueError(f"case {stem}: result table lacks required columns {missing}")
+    if result.status not in VALID_STATUSES:
+        raise ValueError(
+            f"case {stem}: status {result.status!r} is not one of {list(VALID_STATUSES)}"
+        )
+    info = dict(result.info or {})
+    if wall_time_s is None:
+        wall_time_s = info.get("wall_time_s")
+    if prov is None:
+        prov = provenance()
+
+    csv_bytes = table.to_csv(index=False, lineterminator="\n").encode()
+    atomic_write_bytes(files.csv, csv_bytes)
+
+    spec_d = dataclasses.asdict(spec)
+    meta: dict[str, Any] = {
+        "schema_version": SCHEMA_VERSION,
+        "stem": stem,
+        "material": spec.material,
+        "thickness_mm": spec.thickness_mm,
+        "diameter_mm": spec.diameter_mm,
+        "jaw_length_mm": spec.jaw_length_mm,
+        "closed_gap_mm": spec.closed_gap_mm,
+        "force_cap_N": spec.force_cap_N,
+        "status": result.status,
+        "n_steps": int(len(table)),
+        "last_gap_mm": _finite_or_none(table["gap_mm"].min()) if len(table) else None,
+        "max_force_N": _finite_or_none(table["force_N"].max()) if len(table) else None,
+        "material_constants": info.get("material_constants"),
+        "mesh": spec_d["mesh"],
+        "solver": spec_d["solver"],
+        "spec": spec_d,
+        "fe_info": info,
+        "wall_time_s": wall_time_s,
+        "input_hash": input_hash(spec),
+        "csv_file": files.csv.name,
+        "csv_sha256": sha256_bytes(csv_bytes),
+        "columns": list(map(str, table.columns)),
+        "units": {str(c): COLUMN_UNITS.get(str(c)) for c in table.columns},
+        "parameter_units": SPEC_UNITS,
+        "versions": dict(prov.get("versions", {})),
+        "git_revision": prov.get("git_revision"),
+        "git_dirty": prov.get("git_dirty"),
+        "written_at": _now(),
+    }
+    atomic_write_json(files.json, meta)
+    return files
+
+
+def _finite_or_none(x: Any) -> float | None:
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+_REQUIRED_META = (
+    "schema_version",
+    "material",
+    "thickness_mm",
+    "status",
+    "input_hash",
+    "csv_sha256",
+)
+
+
+def read_case(path: str | os.PathLike[str]) -> LoadedCase:
+    """Read and validate one case.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The ``<stem>.json`` sidecar, the ``<stem>.csv`` or the stem path without suffix.
+
+    Returns
+    -------
+    LoadedCase
+
+    Raises
+    ------
+    CorruptCaseError
+        If the JSON is missing or does not parse, lacks required keys, the CSV is missing,
+        its SHA-256 differs from the sidecar's ``csv_sha256``, or it lacks required columns.
+    """
+    p = Path(path)
+    if p.suffix in (".json", ".csv"):
+        p = p.with_suffix("")
+    files = case_files(p.parent, p.name)
+    if not files.json.is_file():
+        raise CorruptCaseError(files.json, "sidecar JSON not found")
+    try:
+        meta = json.loads(files.json.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise CorruptCaseError(files.json, f"JSON does not parse ({exc})") from None
+    if not isinstance(meta, dict):
+        raise CorruptCaseError(files.json, "JSON is not an object")
+    missing = [k for k in _REQUIRED_META if k not in meta]
+    if missing:
+        raise CorruptCaseError(files.json, f"missing keys {missing}")
+    if meta["schema_version"] != SCHEMA_VERSION:
+        raise CorruptCaseError(
+            files.json,
+            f"schema_version {meta['schema_version']!r}, this grasprom reads {SCHEMA_VERSION}",
+        )
+    if meta["status"] not in VALID_STATUSES:
+        raise CorruptCaseError(files.json, f"unknown status {meta['status']!r}")
+    if not files.csv.is_file():
+        raise CorruptCaseError(files.csv, "CSV file not found (its JSON sidecar exists)")
+    try:
+        data = files.csv.read_bytes()
+    except OSError as exc:
+        raise CorruptCaseError(files.csv, f"cannot read ({exc})") from None
+    digest = sha256_bytes(data)
+    if digest != meta["csv_sha256"]:
+        raise CorruptCaseError(
+            files.csv,
+            f"sha256 {digest[:12]}... does not match csv_sha256 "
+            f"{str(meta['csv_sha256'])[:12]}... recorded in {files.json.name}",
+        )
+    try:
+        import io
+
+        table = pd.read_csv(io.BytesIO(data))
+    except Exception as exc:  # noqa: BLE001 - any parse failure is corruption
+        raise CorruptCaseError(files.csv, f"CSV does not parse ({exc})") from None
+    missing_cols = [c for c in REQUIRED_COLUMNS if c not in table.columns]
+    if missing_cols:
+        raise CorruptCaseError(files.csv, f"missing required columns {missing_cols}")
+    return LoadedCase(meta=meta, table=table, files=files)
+
+
+def case_json_paths(directory: str | os.PathLike[str]) -> list[Path]:
+    """Sidecar JSON files of the cases in ``directory`` (excludes the manifest), sorted."""
+    d = Path(directory)
+    return sorted(
+        p for p in d.glob("*.json") if p.name != MANIFEST_NAME and not p.name.startswith(".")
+    )
+
+
+def load_sweep(directory: str | os.PathLike[str]) -> pd.DataFrame:
+    """Load every finished case of a sweep directory into one long DataFrame.
+
+    Parameters
+    ----------
+    directory : str or os.PathLike
+        Sweep directory (e.g. ``fe_data/default``).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``material``, ``thickness_mm`` (mm), ``status``, then the case CSV columns
+        (units in :data:`COLUMN_UNITS`); rows sorted by material, thickness and load step.
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``directory`` does not exist.
+    CorruptCaseError
+        If any case fails validation (see :func:`read_case`).
+    """
+    d = Path(directory)
+    if not d.is_dir():
+        raise FileNotFoundError(f"sweep directory {d} does not exist")
+    frames = []
+    for jp in case_json_paths(d):
+        case = read_case(jp)
+        t = case.table.copy()
+        t.insert(0, "status", case.meta["status"])
+        t.insert(0, "thickness_mm", float(case.meta["thickness_mm"]))
+        t.insert(0, "material", str(case.meta["material"]))
+        frames.append(t)
+    if not frames:
+        return pd.DataFrame(columns=["material", "thickness_mm", "status", *REQUIRED_COLUMNS])
+    df = pd.concat(frames, ignore_index=True)
+    return df.sort_values(["material", "thickness_mm"], kind="stable").reset_index(drop=True)
+
+
+def write_error(directory: str | os.PathLike[str], stem: str, message: str, tb: str) -> Path:
+    """Atomically write ``<stem>.error.txt`` recording a failed case.
+
+    Returns
+    -------
+    pathlib.Path
+        The error file.
+    """
+    path = Path(directory) / f"{stem}{ERROR_SUFFIX}"
+    text = f"case: {stem}\ntime: {_now()}\nerror: {message}\n\n{tb}"
+    atomic_write_bytes(path, text.encode())
+    return path
+
+
+# --------------------------------------------------------------------------- manifest
+
+
+def sweep_parameters(spec: CaseSpec) -> dict[str, Any]:
+    """The parameters a sweep shares across its cases: ``asdict(spec)`` minus the grid axes."""
+    d = dataclasses.asdict(spec)
+    d.pop("material")
+    d.pop("thickness_mm")
+    return d
+
+
+def read_manifest(directory: str | os.PathLike[str]) -> dict | None:
+    """Read ``sweep.json`` of a sweep directory.
+
+    Returns
+    -------
+    dict or None
+        The manifest, or None if there is none.
+
+    Raises
+    ------
+    CorruptCaseError
+        If the manifest exists but does not parse.
+    """
+    path = Path(directory) / MANIFEST_NAME
+    if not path.is_file():
+        return None
+    try:
+        m = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise CorruptCaseError(path, f"manifest JSON does not parse ({exc})") from None
+    if not isinstance(m, dict) or "cases" not in m or "parameters" not in m:
+        raise CorruptCaseError(path, "manifest lacks 'cases' or 'parameters'")
+    return m
+
+
+def write_manifest(
+    directory: str | os.PathLike[str],
+    specs: Sequence[CaseSpec],
+    *,
+    last_run: Mapping[str, Any] | None = None,
+) -> dict:
+    """Create or update ``sweep.json``, merging with an existing manifest.
+
+    The manifest holds ``schema_version``, ``grasprom_version``, ``created`` and ``updated``
+    (UTC ISO 8601), ``grid`` (sorted ``materials`` and ``thickness_mm`` over all cases),
+    ``parameters`` (shared case inputs, see :func:`sweep_parameters`), ``cases`` (a list of
+    ``{"stem", "material", "thickness_mm", "input_hash"}``), ``units`` and, after a run,
+    ``last_run``.
+
+    Parameters
+    ----------
+    directory : str or os.PathLike
+        Sweep directory (must exist).
+    specs : sequence of CaseSpec
+        Cases of this run; all must share :func:`sweep_parameters`.
+    last_run : mapping, optional
+        Summary of the latest run to record.
+
+    Returns
+    -------
+    dict
+        The manifest written.
+
+    Raises
+    ------
+    ValueError
+        If the specs' shared parameters differ from each other or from the existing manifest.
+    """
+    d = Path(directory)
+    if not specs:
+        raise ValueError("write_manifest: no cases")
+    params = sweep_parameters(specs[0])
+    for s in specs[1:]:
+        if sweep_parameters(s) != params:
+            raise ValueError(
+                "all cases of one sweep must share diameter, jaw length, gap, "
+                "force cap, mesh and solver settings"
+            )
+    old = read_manifest(d)
+    if old is not None and canonical_json(old["parameters"]) != canonical_json(params):
+        raise ValueError(
+            f"{d / MANIFEST_NAME} records different sweep parameters; use another --out"
+        )
+    cases: dict[str, dict[str, Any]] = {}
+    if old is not None:
+        cases.update({c["stem"]: c for c in old["cases"]})
+    for s in specs:
+        stem = spec_stem(s)
+        cases[stem] = {
+            "stem": stem,
+            "material": s.material,
+            "thickness_mm": s.thickness_mm,
+            "input_hash": input_hash(s),
+        }
+    case_list = sorted(cases.values(), key=lambda c: (c["material"], c["thickness_mm"]))
+    now = _now()
+    manifest: dict[str, Any] = {
+        "schema_version": SCHEMA_VERSION,
+        "grasprom_version": __version__,
+        "created": old.get("created", now) if old else now,
+        "updated": now,
+        "grid": {
+            "materials": sorted({c["material"] for c in case_list}),
+            "thickness_mm": sorted({c["thickness_mm"] for c in case_list}),
+        },
+        "parameters": params,
+        "cases": case_list,
+        "units": {**SPEC_UNITS, **{f"csv:{k}": v for k, v in COLUMN_UNITS.items()}},
+    }
+    if last_run is not None:
+        manifest["last_run"] = dict(last_run)
+    elif old is not None and "last_run" in old:
+        manifest["last_run"] = old["last_run"]
+    atomic_write_json(d / MANIFEST_NAME, manifest)
+    return manifest
+
+
+def known_stems(directory: str | os.PathLike[str]) -> list[str]:
+    """Stems of all cases a directory knows of: manifest, sidecars and error files."""
+    d = Path(directory)
+    stems: set[str] = set()
+    try:
+        m = read_manifest(d)
+    except CorruptCaseError:
+        m = None
+    if m is not None:
+        stems.update(c["stem"] for c in m["cases"])
+    stems.update(p.stem for p in case_json_paths(d))
+    stems.update(p.name[: -len(ERROR_SUFFIX)] for p in d.glob(f"*{ERROR_SUFFIX}"))
+    return sorted(stems, key=lambda s: parse_stem(s) or (s, 0.0))

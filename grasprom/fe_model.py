@@ -1,0 +1,729 @@
+"""Plane-strain FE model of a tube (colon wall) clamped flat between rigid jaws.
+
+Model (seed 003's "CS" cylindrical approximation):
+
+* cross-section of a tube of outer diameter ``D`` and wall thickness ``t``, plane strain, quarter
+  symmetry (``x >= 0, y >= 0``); symmetry ``u_x = 0`` on ``x = 0`` and ``u_y = 0`` on ``y = 0``;
+* a rigid flat jaw ``y = h`` descends from first touch (``h = D/2``) to ``h = closed_gap / 2``;
+  the jaw gap is ``2 h``; frictionless node-to-plane contact with the outer wall;
+* self-contact of the inner wall with its mirror image is contact with the rigid plane ``y = 0``
+  (frictionless), which the inner wall reaches once the walls meet (``gap ~ 2 t``);
+* contact is solved exactly with a primal active set: active nodes get a prescribed normal
+  displacement and are released when their reaction turns tensile;
+* P2 triangles (6-point rule) with a constant pressure / dilatation per element (three-field
+  mean dilatation, a P2/P0 pair, inf-sup stable in 2D) against volumetric locking; the
+  structured mesh puts the diagonal through the inner fold corner so that two triangles share it;
+* Newton-Raphson on the total potential energy with consistent tangent, an energy line search,
+  a Levenberg shift when the tangent is not positive definite, and adaptive displacement
+  stepping (cut on divergence, grow on easy convergence).
+
+Forces: the 2D model gives a force per unit tube length (N/mm); the jaw force is that times
+``jaw_length_mm`` (the length of tube the jaw squeezes, i.e. the jaw width across the tube).
+This neglects the ends of the squeezed zone (the tube outside the jaws), see README.
+
+Lengths in mm, forces in N, stresses in MPa.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+import pandas as pd
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from .materials import Material, cofactor, get_material, pointwise_tangent
+
+COLUMNS = (
+    "gap_mm",
+    "jaw_displacement_mm",
+    "force_N",
+    "force_per_length_N_per_mm",
+    "contact_width_mm",
+    "peak_pressure_MPa",
+    "mean_pressure_MPa",
+    "inner_contact_width_mm",
+    "min_J",
+    "newton_iterations",
+)
+
+COLUMN_UNITS = {
+    "gap_mm": "mm, jaw gap (distance between the two jaw faces)",
+    "jaw_displacement_mm": "mm, travel of one jaw from first touch",
+    "force_N": "N, clamping force on one jaw = force_per_length_N_per_mm * jaw_length_mm",
+    "force_per_length_N_per_mm": "N/mm, clamping force per unit tube length (2D result)",
+    "contact_width_mm": "mm, width of the jaw-tissue contact (full width, both halves)",
+    "peak_pressure_MPa": "MPa, largest nodal contact pressure on the jaw",
+    "mean_pressure_MPa": "MPa, force_per_length / contact_width",
+    "inner_contact_width_mm": "mm, width over which the inner walls touch (full width)",
+    "min_J": "1, smallest det(F) over all quadrature points (volume ratio)",
+    "newton_iterations": "1, Newton iterations of the step (all active-set passes)",
+}
+
+
+@dataclass(frozen=True)
+class MeshSpec:
+    """Structured polar mesh of the quarter ring, split into P2 triangles.
+
+    Parameters
+    ----------
+    n_layers : int
+        Element layers through the wall thickness.
+    n_circ : int
+        Element divisions along the quarter circumference.
+    grading : float
+        Ratio of the largest to the smallest circumferential element (geometric progression,
+        1 = uniform); > 1 refines toward the side fold (``theta = 0``), where the wall bends
+        hardest, and coarsens toward the top, which only flattens.
+    element : str
+        ``"P2B/P1"`` (default) or ``"P2/P0"``, see :func:`discretise`.
+    """
+
+    n_layers: int = 2
+    n_circ: int = 48
+    grading: float = 1.0
+    element: str = "P2B/P1"
+
+    def refined(self, factor: int = 2) -> MeshSpec:
+        """The same mesh with every element split ``factor`` times in each direction."""
+        g = self.grading ** ((self.n_circ * factor - 1) / max(self.n_circ - 1, 1) / factor)
+        return MeshSpec(self.n_layers * factor, self.n_circ * factor, g, self.element)
+
+
+@dataclass(frozen=True)
+class SolverSettings:
+    """Newton-Raphson / load-stepping settings (lengths in mm).
+
+    Parameters
+    ----------
+    dh_initial_mm : float
+        First jaw step.
+    dh_min_mm : float
+        Smallest step before the case is declared partial.
+    dh_max_mm : float
+        Largest step in the low-force bending regime.
+    max_rel_force_step : float
+        Target relative force change per step once the force exceeds ``force_floor_N``
+        (keeps the steep rise resolved).
+    force_floor_N : float
+        Below this force the relative-change control is off.
+    approach_fraction : float
+        While the walls have not met (``h > t``), a step is at most this fraction of the
+        remaining distance ``h - t`` to the walls meeting (but not below ``0.01 t``).
+    max_newton : int
+        Newton iterations per active-set pass.
+    max_active_set : int
+        Active-set passes per step.
+    rtol : float
+        Residual tolerance relative to the force scale ``mu * t`` (N/mm).
+    """
+
+    dh_initial_mm: float = 0.05
+    dh_min_mm: float = 1e-5
+    dh_max_mm: float = 0.5
+    max_rel_force_step: float = 0.25
+    force_floor_N: float = 0.05
+    approach_fraction: float = 0.2
+    max_newton: int = 30
+    max_active_set: int = 30
+    rtol: float = 1e-9
+
+
+@dataclass(frozen=True)
+class CaseSpec:
+    """One FE case: a tube of one wall thickness and material clamped by flat jaws.
+
+    Parameters
+    ----------
+    material : str
+        ``mr``, ``nh`` or ``le`` (see :mod:`grasprom.materials`).
+    thickness_mm : float
+        Wall thickness (mm).
+    diameter_mm : float
+        Outer diameter of the tube (mm).
+    jaw_length_mm : float
+        Length of tube squeezed by the jaws (mm): out-of-plane depth of the 2D model.
+    closed_gap_mm : float
+        Jaw gap at full closure (mm); seed 003: 1.5 mm staple cartridge.
+    force_cap_N : float
+        Stop once the jaw force passes this (N).
+    mesh : MeshSpec
+    solver : SolverSettings
+    nu : float or None
+        Poisson ratio override for the material (None: material default 0.49).
+    """
+
+    material: str
+    thickness_mm: float
+    diameter_mm: float = 30.0
+    jaw_length_mm: float = 10.0
+    closed_gap_mm: float = 1.5
+    force_cap_N: float = 200.0
+    mesh: MeshSpec = field(default_factory=MeshSpec)
+    solver: SolverSettings = field(default_factory=SolverSettings)
+    nu: float | None = None
+
+    def make_material(self) -> Material:
+        """The material object of this case."""
+        kw = {} if self.nu is None else {"nu": self.nu}
+        return get_material(self.material, **kw)
+
+
+@dataclass
+class CaseResult:
+    """Result of :func:`run_case`.
+
+    Attributes
+    ----------
+    table : pandas.DataFrame
+        One row per converged load step, columns :data:`COLUMNS` (units in
+        :data:`COLUMN_UNITS`).
+    status : str
+        ``"complete"`` (closed gap or force cap reached) or ``"partial"``.
+    info : dict
+        JSON-serialisable solver record: steps, newton_iterations, failures,
+        last_gap_mm, dofs, wall_time_s, material constants, mesh, solver settings.
+    """
+
+    table: pd.DataFrame
+    status: str
+    info: dict
+
+
+# ----------------------------------------------------------------------------------------------
+# mesh and discretisation
+# ----------------------------------------------------------------------------------------------
+
+
+def ring_mesh(outer_radius: float, thickness: float, mesh: MeshSpec):
+    """Quarter-ring triangle mesh (skfem ``MeshTri``), lengths in mm.
+
+    Node ``(i, j)``: layer ``i`` from the inner wall, circumferential index ``j`` from the side
+    (``theta = 0``, on ``y = 0``) to the top (``theta = 90 deg``, on ``x = 0``).  Every quad is cut
+    along the diagonal through its ``(i, j)``-``(i+1, j+1)`` corners, so the inner fold corner
+    (``i = j = 0``) is shared by two triangles.
+    """
+    import skfem
+
+    nl, nc = int(mesh.n_layers), int(mesh.n_circ)
+    if nl < 1 or nc < 4:
+        raise ValueError(f"mesh too coarse: n_layers={nl} (>= 1), n_circ={nc} (>= 4)")
+    r = np.linspace(outer_radius - thickness, outer_radius, nl + 1)
+    q = float(mesh.grading) ** (1.0 / max(nc - 1, 1))
+    ds = q ** np.arange(nc)
+    th = 0.5 * np.pi * np.concatenate([[0.0], np.cumsum(ds)]) / ds.sum()
+    R, T = np.meshgrid(r, th, indexing="ij")
+    x = R * np.cos(T)
+    y = R * np.sin(T)
+    x[:, -1] = 0.0
+    y[:, 0] = 0.0
+    pts = np.vstack([x.ravel(), y.ravel()])
+    idx = np.arange((nl + 1) * (nc + 1)).reshape(nl + 1, nc + 1)
+    a = idx[:-1, :-1].ravel()
+    b = idx[1:, :-1].ravel()
+    c = idx[1:, 1:].ravel()
+    d = idx[:-1, 1:].ravel()
+    tris = np.hstack([np.vstack([a, b, c]), np.vstack([a, c, d])])
+    return skfem.MeshTri(pts, tris)
+
+
+ELEMENTS = ("P2B/P1", "P2/P0")
+
+
+@dataclass(frozen=True)
+class _Discretisation:
+    """Precomputed arrays of the discretisation (internal)."""
+
+    ndof: int
+    edofs: np.ndarray  # (ne, nd) vector dofs
+    B: np.ndarray  # (ne, nq, 4, nd) gradient operator: vec(grad u)[2 i + j] = B @ u_e
+    Bt: np.ndarray  # (ne, nq, nd, 4) its transpose, contiguous
+    dx: np.ndarray  # (ne, nq) quadrature weights x |det J|
+    psi: np.ndarray  # (ne, nq, npr) discontinuous pressure/dilatation basis at the points
+    wpsi: np.ndarray  # (ne, nq, npr) dx * psi
+    Minv: np.ndarray  # (ne, npr, npr) inverse element mass matrix of psi
+    X: np.ndarray  # (nnode, 2) reference coordinates of the nodes (bubbles: centroid)
+    bubble_nodes: np.ndarray  # ids of the interior bubble "nodes" (coefficients, not positions)
+    sym_x: np.ndarray  # vector dofs with u_x = 0
+    sym_y: np.ndarray  # vector dofs with u_y = 0
+    outer_nodes: np.ndarray  # nodes on the outer wall (jaw contact candidates)
+    inner_nodes: np.ndarray  # nodes on the inner wall (floor contact candidates)
+    outer_edges: np.ndarray  # (nedge, 3) node triples (end, end, mid) on the outer wall
+    rows: np.ndarray  # CSR assembly maps
+    cols: np.ndarray
+    scatter: np.ndarray
+    indptr: np.ndarray
+    indices: np.ndarray
+    diag_pos: np.ndarray  # position of the diagonal entries in CSR data
+
+
+def discretise(outer_radius: float, thickness: float, mesh: MeshSpec) -> _Discretisation:
+    """Build basis, quadrature data, boundary sets and the sparse assembly map.
+
+    ``mesh.element`` selects the displacement/dilatation pair: ``"P2B/P1"`` (quadratic +
+    cubic bubble displacement, linear discontinuous pressure and dilatation per element,
+    Crouzeix-Raviart, inf-sup stable, captures the linear through-thickness dilatation of
+    bending) or ``"P2/P0"`` (quadratic displacement, constant per element: classic mean
+    dilatation, too soft in bending with few layers).
+    """
+    import skfem
+
+    if mesh.element not in ELEMENTS:
+        raise ValueError(f"unknown element {mesh.element!r}; valid: {', '.join(ELEMENTS)}")
+    m = ring_mesh(outer_radius, thickness, mesh)
+    bubble = mesh.element == "P2B/P1"
+    elem = skfem.ElementTriP2B() if bubble else skfem.ElementTriP2()
+    basis = skfem.Basis(m, elem, intorder=4)
+    nloc = elem.doflocs.shape[0]
+    grads = np.stack([basis.basis[a][0].grad for a in range(nloc)])  # (nloc, 2, ne, nq)
+    grads = grads.transpose(2, 3, 0, 1)  # (ne, nq, nloc, 2)
+    ne, nq = grads.shape[:2]
+    B = np.zeros((ne, nq, 2, 2, nloc, 2))  # [i, j, a, k] = delta_ik dN_a/dX_j
+    for i in range(2):
+        B[:, :, i, :, :, i] = grads.transpose(0, 1, 3, 2)
+    B = B.reshape(ne, nq, 4, 2 * nloc)
+    dx = np.asarray(basis.dx)
+    xq = basis.mapping.F(basis.X)  # (2, ne, nq) physical quadrature points
+    if bubble:
+        xc = m.p[:, m.t].mean(axis=1)  # (2, ne)
+        hsz = np.sqrt(dx.sum(axis=1))
+        psi = np.stack(
+            [np.ones((ne, nq)), (xq[0] - xc[0][:, None]) / hsz[:, None],
+             (xq[1] - xc[1][:, None]) / hsz[:, None]],
+            axis=-1,
+        )
+    else:
+        psi = np.ones((ne, nq, 1))
+    wpsi = dx[..., None] * psi
+    Minv = np.linalg.inv(np.einsum("eqk,eql->ekl", wpsi, psi))
+    sdofs = basis.element_dofs.T  # (ne, nloc) scalar dofs = node ids
+    edofs = np.empty((ne, 2 * nloc), dtype=np.int64)
+    edofs[:, 0::2] = 2 * sdofs
+    edofs[:, 1::2] = 2 * sdofs + 1
+    X = basis.doflocs.T.copy()
+    if bubble:
+        X[basis.interior_dofs[0]] = m.p[:, m.t].mean(axis=1).T
+    nnode = X.shape[0]
+    ndof = 2 * nnode
+    tol = 1e-9 * outer_radius
+    on_x0 = np.abs(X[:, 0]) < tol
+    on_y0 = np.abs(X[:, 1]) < tol
+    if bubble:
+        on_x0[basis.interior_dofs[0]] = False
+        on_y0[basis.interior_dofs[0]] = False
+    sym_x = 2 * np.flatnonzero(on_x0)
+    sym_y = 2 * np.flatnonzero(on_y0) + 1
+
+    rin = outer_radius - thickness
+    on_bnd = np.zeros(m.facets.shape[1], dtype=bool)
+    on_bnd[m.boundary_facets()] = True
+    rmid = np.hypot(*m.p[:, m.facets].mean(axis=1))
+    h_r = thickness / mesh.n_layers
+    outer_f = np.flatnonzero(on_bnd & (rmid > outer_radius - 0.25 * h_r))
+    inner_f = np.flatnonzero(on_bnd & (rmid < rin + 0.25 * h_r))
+
+    def edge_nodes(facets):
+        return np.hstack([m.facets[:, facets].T, basis.facet_dofs[:, facets].T])
+
+    outer_edges = edge_nodes(outer_f)
+    outer_nodes = np.unique(outer_edges)
+    inner_nodes = np.unique(edge_nodes(inner_f))
+    inner_nodes = inner_nodes[~on_y0[inner_nodes]]  # the fold corner is on y = 0 already
+
+    nd = 2 * nloc
+    rows = np.repeat(edofs, nd, axis=1).ravel()
+    cols = np.tile(edofs, (1, nd)).ravel()
+    keys = rows * ndof + cols
+    uniq, scatter = np.unique(keys, return_inverse=True)
+    urows = uniq // ndof
+    ucols = uniq % ndof
+    indptr = np.searchsorted(urows, np.arange(ndof + 1))
+    diag_pos = np.flatnonzero(urows == ucols)
+    return _Discretisation(
+        ndof=ndof,
+        edofs=edofs,
+        B=B,
+        Bt=np.ascontiguousarray(B.transpose(0, 1, 3, 2)),
+        dx=dx,
+        psi=psi,
+        wpsi=wpsi,
+        Minv=Minv,
+        X=X,
+        bubble_nodes=np.asarray(basis.interior_dofs[0]) if bubble else np.zeros(0, dtype=int),
+        sym_x=sym_x,
+        sym_y=sym_y,
+        outer_nodes=outer_nodes,
+        inner_nodes=inner_nodes,
+        outer_edges=outer_edges,
+        rows=urows,
+        cols=ucols,
+        scatter=scatter.ravel(),
+        indptr=indptr,
+        indices=ucols.astype(np.int32),
+        diag_pos=diag_pos,
+    )
+
+
+# ----------------------------------------------------------------------------------------------
+# vectorised element kernels
+# ----------------------------------------------------------------------------------------------
+
+
+def _kinematics(disc: _Discretisation, u: np.ndarray):
+    ue = u[disc.edofs]  # (ne, nd)
+    F = np.matmul(disc.B, ue[:, None, :, None]).reshape(ue.shape[0], -1, 2, 2)
+    F[..., 0, 0] += 1.0
+    F[..., 1, 1] += 1.0
+    J = F[..., 0, 0] * F[..., 1, 1] - F[..., 0, 1] * F[..., 1, 0]
+    return F, J
+
+
+def _dilatation(disc: _Discretisation, J: np.ndarray) -> np.ndarray:
+    """Element-wise L2 projection of det F on the pressure space, at the points (ne, nq)."""
+    c = np.einsum("ekl,eql,eq->ek", disc.Minv, disc.wpsi, J)
+    return np.einsum("eqk,ek->eq", disc.psi, c)
+
+
+def energy(disc: _Discretisation, material: Material, u: np.ndarray) -> float:
+    """Strain energy per unit length (N mm / mm) of the quarter model; inf if inverted."""
+    F, J = _kinematics(disc, u)
+    if not np.all(J > 0):
+        return np.inf
+    theta = _dilatation(disc, J)
+    if not np.all(theta > 0):
+        return np.inf
+    a = np.einsum("eqij,eqij->eq", F, F)
+    W = material.pointwise(a, J)[0] + material.volumetric(theta)[0]
+    return float((disc.dx * W).sum())
+
+
+def assemble(disc: _Discretisation, material: Material, u: np.ndarray, tangent: bool = True):
+    """Internal force (N/mm), optionally the CSR tangent (N/mm^2), and min det F.
+
+    Returns ``(None, None, minJ)`` if an element is inverted.
+    """
+    F, J = _kinematics(disc, u)
+    minJ = float(J.min())
+    if minJ <= 0:
+        return None, None, minJ
+    theta = _dilatation(disc, J)
+    if not np.all(theta > 0):
+        return None, None, minJ
+    a = np.einsum("eqij,eqij->eq", F, F)
+    cof = cofactor(F)
+    _, W_a, W_J, W_aa, W_aJ, W_JJ = material.pointwise(a, J)
+    _, dU, ddU = material.volumetric(theta)
+    # pressure: projection of U'(theta) on the pressure space
+    pc = np.einsum("ekl,eql,eq->ek", disc.Minv, disc.wpsi, dU)
+    p = np.einsum("eqk,ek->eq", disc.psi, pc)
+    W_Jt = W_J + p
+    P = 2.0 * W_a[..., None, None] * F + W_Jt[..., None, None] * cof
+    ne, nq = disc.dx.shape
+    dx = disc.dx[..., None, None]
+    fe = (np.matmul(disc.Bt, P.reshape(ne, nq, 4, 1)) * dx).sum(axis=1)[..., 0]
+    f = np.bincount(disc.edofs.ravel(), weights=fe.ravel(), minlength=disc.ndof)
+    if not tangent:
+        return f, None, minJ
+    A = pointwise_tangent(F, cof, W_a, W_Jt, W_aa, W_aJ, W_JJ).reshape(ne, nq, 4, 4) * dx
+    Ke = np.matmul(disc.Bt, np.matmul(A, disc.B)).sum(axis=1)
+    # volumetric coupling: G = int psi dJ/du, K += G^T Minv D Minv G
+    gq = np.matmul(disc.Bt, cof.reshape(ne, nq, 4, 1))[..., 0]  # (ne, nq, nd)
+    G = np.einsum("eqk,eqd->ekd", disc.wpsi, gq)
+    D = np.einsum("eqk,eql,eq->ekl", disc.wpsi, disc.psi, ddU)
+    MG = np.matmul(disc.Minv, G)
+    Ke += np.matmul(MG.transpose(0, 2, 1), np.matmul(D, MG))
+    data = np.bincount(disc.scatter, weights=Ke.ravel(), minlength=disc.rows.size)
+    K = sp.csr_matrix((data, disc.indices, disc.indptr), shape=(disc.ndof, disc.ndof))
+    return f, K, minJ
+
+
+# ----------------------------------------------------------------------------------------------
+# contact + Newton
+# ----------------------------------------------------------------------------------------------
+
+
+def _constrained_system(disc: _Discretisation, K: sp.csr_matrix, fixed: np.ndarray):
+    """Copy of K with rows/cols of ``fixed`` dofs replaced by identity."""
+    keep = ~(fixed[disc.rows] | fixed[disc.cols])
+    data = K.data * keep
+    data[disc.diag_pos[fixed]] = 1.0
+    return sp.csr_matrix((data, disc.indices, disc.indptr), shape=K.shape)
+
+
+class _NewtonFailure(Exception):
+    pass
+
+
+def _newton(disc, material, u, fixed, settings: SolverSettings, fscale: float):
+    """Newton-Raphson with energy line search on the free dofs; returns (u, f, K, iters)."""
+    f, K, minJ = assemble(disc, material, u)
+    if f is None:
+        raise _NewtonFailure("inverted element at start of Newton")
+    tol = settings.rtol * fscale
+    for it in range(1, settings.max_newton + 1):
+        r = f.copy()
+        r[fixed] = 0.0
+        rnorm = np.linalg.norm(r)
+        if rnorm <= tol:
+            return u, f, K, it - 1
+        Kc = _constrained_system(disc, K, fixed)
+        shift = 0.0
+        for _ in range(6):
+            Ks = Kc if shift == 0.0 else Kc + shift * sp.identity(disc.ndof, format="csr")
+            try:
+                du = spla.spsolve(Ks.tocsc(), -r)
+            except RuntimeError:
+                du = None
+            if du is not None and np.all(np.isfinite(du)) and r @ du < 0:
+                break
+            shift = 1e-3 * abs(Kc.diagonal()).mean() if shift == 0.0 else shift * 10.0
+        else:
+            raise _NewtonFailure("no descent direction")
+        du[fixed] = 0.0
+        e0 = energy(disc, material, u)
+        slope = r @ du
+        alpha = 1.0
+        accepted = False
+        for _ in range(12):
+            ut = u + alpha * du
+            et = energy(disc, material, ut)
+            if np.isfinite(et):
+                if et <= e0 + 1e-4 * alpha * slope:
+                    accepted = True
+                    break
+                if alpha == 1.0:
+                    ft, _, _ = assemble(disc, material, ut, tangent=False)
+                    rt = ft.copy()
+                    rt[fixed] = 0.0
+                    if np.linalg.norm(rt) < 0.5 * rnorm:
+                        accepted = True
+                        break
+            alpha *= 0.5
+        if not accepted:
+            raise _NewtonFailure("line search failed")
+        u = ut
+        f, K, minJ = assemble(disc, material, u)
+        if f is None:  # pragma: no cover - energy check prevents this
+            raise _NewtonFailure("inverted element")
+    raise _NewtonFailure("Newton did not converge")
+
+
+@dataclass
+class _State:
+    u: np.ndarray
+    jaw_active: np.ndarray  # bool over disc.outer_nodes
+    floor_active: np.ndarray  # bool over disc.inner_nodes
+    f: np.ndarray | None = None
+    K: sp.csr_matrix | None = None
+
+
+def _fixed_and_values(disc, state: _State, h: float):
+    fixed = np.zeros(disc.ndof, dtype=bool)
+    values = np.zeros(disc.ndof)
+    fixed[disc.sym_x] = True
+    fixed[disc.sym_y] = True
+    jn = disc.outer_nodes[state.jaw_active]
+    fixed[2 * jn + 1] = True
+    values[2 * jn + 1] = h - disc.X[jn, 1]
+    fnode = disc.inner_nodes[state.floor_active]
+    fixed[2 * fnode + 1] = True
+    values[2 * fnode + 1] = -disc.X[fnode, 1]
+    return fixed, values
+
+
+def _solve_step(disc, material, state: _State, h: float, settings: SolverSettings, fscale):
+    """Solve equilibrium at jaw height ``h`` (mm) with the active-set loop."""
+    jaw_active = state.jaw_active.copy()
+    floor_active = state.floor_active.copy()
+    u = state.u.copy()
+    K_old = state.K
+    iters = 0
+    tol_pen = 1e-9 * max(1.0, h)
+    for _ in range(settings.max_active_set):
+        trial = _State(u, jaw_active, floor_active)
+        fixed, values = _fixed_and_values(disc, trial, h)
+        jump = np.where(fixed, values - u, 0.0)
+        if np.any(jump != 0.0):
+            # tangent predictor: free dofs follow the prescribed jump to first order
+            if K_old is not None:
+                rhs = -(K_old @ jump)
+                rhs[fixed] = 0.0
+                Kc = _constrained_system(disc, K_old, fixed)
+                dfree = spla.spsolve(Kc.tocsc(), rhs)
+                dfree[fixed] = 0.0
+                if np.all(np.isfinite(dfree)):
+                    u = u + dfree
+            u = u + jump
+        u, f, K, it = _newton(disc, material, u, fixed, settings, fscale)
+        iters += it
+        K_old = K
+        y = disc.X[:, 1] + u[1::2]
+        fy = f[1::2]
+        # jaw: release tensile (jaw pulling the tissue up), add penetrating nodes
+        on = disc.outer_nodes
+        new_jaw = np.where(jaw_active, fy[on] <= 0.0, y[on] > h + tol_pen)
+        inn = disc.inner_nodes
+        new_floor = np.where(floor_active, fy[inn] >= 0.0, y[inn] < -tol_pen)
+        if np.array_equal(new_jaw, jaw_active) and np.array_equal(new_floor, floor_active):
+            return _State(u, jaw_active, floor_active, f, K), iters
+        jaw_active, floor_active = new_jaw, new_floor
+    raise _NewtonFailure("active set did not settle")
+
+
+def _contact_measures(disc, state: _State):
+    """Jaw force per length of the quarter (N/mm), contact widths (mm), peak pressure (MPa)."""
+    u, f = state.u, state.f
+    x = disc.X[:, 0] + u[0::2]
+    jn = disc.outer_nodes[state.jaw_active]
+    force_q = float(-f[2 * jn + 1].sum()) if jn.size else 0.0
+    width_q = float(x[jn].max()) if jn.size else 0.0
+    peak = 0.0
+    if jn.size:
+        w = np.zeros(x.size)
+        e = disc.outer_edges
+        L = np.abs(x[e[:, 1]] - x[e[:, 0]])
+        np.add.at(w, e[:, 0], L / 6.0)
+        np.add.at(w, e[:, 1], L / 6.0)
+        np.add.at(w, e[:, 2], 2.0 * L / 3.0)
+        sel = w[jn] > 0
+        if np.any(sel):
+            peak = float(np.max(-f[2 * jn[sel] + 1] / w[jn][sel]))
+    fn = disc.inner_nodes[state.floor_active]
+    inner_w = float(x[fn].max() - x[fn].min()) if fn.size else 0.0
+    return force_q, width_q, peak, inner_w
+
+
+def run_case(spec: CaseSpec, progress=None) -> CaseResult:
+    """Run one clamping case: drive the jaw from first touch to the closed gap or force cap.
+
+    Parameters
+    ----------
+    spec : CaseSpec
+        Geometry (mm), material, limits, mesh and solver settings.
+    progress : callable, optional
+        Called as ``progress(gap_mm, force_N)`` after each converged step.
+
+    Returns
+    -------
+    CaseResult
+        Table of converged steps (mm, N, MPa), status and solver record.
+    """
+    t0 = time.perf_counter()
+    _validate_spec(spec)
+    material = spec.make_material()
+    R = 0.5 * spec.diameter_mm
+    t = spec.thickness_mm
+    disc = discretise(R, t, spec.mesh)
+    s = spec.solver
+    fscale = material.mu * t
+    scale_N = 2.0 * spec.jaw_length_mm  # quarter N/mm -> one jaw N
+    h_end = 0.5 * spec.closed_gap_mm
+    state = _State(
+        np.zeros(disc.ndof),
+        np.zeros(disc.outer_nodes.size, dtype=bool),
+        np.zeros(disc.inner_nodes.size, dtype=bool),
+    )
+    top = np.flatnonzero(np.isclose(disc.X[disc.outer_nodes, 0], 0.0, atol=1e-12))
+    state.jaw_active[top] = True
+    state.f, state.K, _ = assemble(disc, material, state.u)
+    rows = [dict(zip(COLUMNS, (2 * R, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0)))]
+    h = R
+    dh = s.dh_initial_mm
+    n_fail = 0
+    total_newton = 0
+    fail_log: list[dict] = []
+    force_prev = 0.0
+    status = "partial"
+    reason = ""
+    while True:
+        dh = min(dh, s.dh_max_mm, h - h_end)
+        if h > t:  # resolve the walls meeting: approach h = t geometrically
+            dh = min(dh, max(0.01 * t, s.approach_fraction * (h - t)))
+        if dh < s.dh_min_mm and h - h_end > s.dh_min_mm:
+            reason = f"step below dh_min_mm={s.dh_min_mm} at gap {2 * h:.4f} mm"
+            break
+        h_new = h - dh
+        try:
+            new_state, iters = _solve_step(disc, material, state, h_new, s, fscale)
+        except (_NewtonFailure, RuntimeError, ValueError, FloatingPointError) as exc:
+            n_fail += 1
+            fail_log.append({"gap_mm": 2 * h_new, "dh_mm": dh, "reason": str(exc)})
+            dh *= 0.25
+            continue
+        total_newton += iters
+        state = new_state
+        h = h_new
+        force_q, width_q, peak, inner_w = _contact_measures(disc, state)
+        force_N = force_q * scale_N
+        _, J = _kinematics(disc, state.u)
+        rows.append(
+            dict(
+                zip(
+                    COLUMNS,
+                    (
+                        2 * h,
+                        R - h,
+                        force_N,
+                        2 * force_q,
+                        2 * width_q,
+                        peak,
+                        force_q / width_q if width_q > 0 else 0.0,
+                        2 * inner_w,
+                        float(J.min()),
+                        iters,
+                    ),
+                )
+            )
+        )
+        if progress is not None:
+            progress(2 * h, force_N)
+        if force_N >= spec.force_cap_N:
+            status, reason = "complete", "force cap reached"
+            break
+        if h <= h_end + 1e-12:
+            status, reason = "complete", "closed gap reached"
+            break
+        # step control: Newton effort and relative force change
+        grow = 1.5 if iters <= 6 else (1.0 if iters <= 12 else 0.6)
+        dh_next = dh * grow
+        if force_N > s.force_floor_N and force_prev > 0:
+            rel = (force_N - force_prev) / force_prev
+            if rel > 0:
+                dh_next = min(dh_next, dh * s.max_rel_force_step / rel)
+        dh = max(dh_next, 2 * s.dh_min_mm)
+        force_prev = force_N
+    table = pd.DataFrame(rows, columns=list(COLUMNS))
+    info = {
+        "status_reason": reason,
+        "steps": len(rows) - 1,
+        "newton_iterations": int(total_newton),
+        "failures": n_fail,
+        "failure_log": fail_log[-20:],
+        "last_gap_mm": float(2 * h),
+        "max_force_N": float(table["force_N"].max()),
+        "dofs": int(disc.ndof),
+        "elements": int(disc.edofs.shape[0]),
+        "wall_time_s": time.perf_counter() - t0,
+        "material_constants": material.constants(),
+        "mesh": asdict(spec.mesh),
+        "solver": asdict(spec.solver),
+        "element": "P2 triangle, 6-point rule, per-element mean dilatation (P2/P0)",
+        "force_definition": "force_N = 2 x quarter-model reaction (N/mm) x jaw_length_mm",
+    }
+    return CaseResult(table=table, status=status, info=info)
+
+
+def _validate_spec(spec: CaseSpec) -> None:
+    R = 0.5 * spec.diameter_mm
+    checks = (
+        ("diameter_mm", spec.diameter_mm, spec.diameter_mm > 0),
+        ("thickness_mm", spec.thickness_mm, 0 < spec.thickness_mm < R),
+        ("jaw_length_mm", spec.jaw_length_mm, spec.jaw_length_mm > 0),
+        ("closed_gap_mm", spec.closed_gap_mm, 0 < spec.closed_gap_mm < spec.diameter_mm),
+        ("force_cap_N", spec.force_cap_N, spec.force_cap_N > 0),
+    )
+    for name, value, ok in checks:
+        if not (np.isfinite(value) and ok):
+            raise ValueError(f"invalid {name}={value!r} (diameter_mm={spec.diameter_mm})")

@@ -1,0 +1,26 @@
+"""Shared fixtures for the sweep-infrastructure tests."""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture
+def subprocess_env() -> dict[str, str]:
+    """Environment for child Pythons: the source tree importable, no progress noise."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    env.setdefault("PYTHONUNBUFFERED", "1")
+    return env
+
+
+@pytest.fixture
+def python() -> str:
+    """The interpreter running the tests."""
+    return sys.executable
