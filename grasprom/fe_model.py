@@ -82,7 +82,7 @@ class MeshSpec:
     """
 
     n_layers: int = 2
-    n_circ: int = 48
+    n_circ: int = 32
     grading: float = 1.0
     element: str = "P2B/P1"
 
@@ -118,6 +118,9 @@ class SolverSettings:
         Active-set passes per step.
     rtol : float
         Residual tolerance relative to the force scale ``mu * t`` (N/mm).
+    land_on_gaps_mm : tuple of float
+        Jaw gaps (mm) the stepping lands on exactly (a converged step at each), e.g. to compare
+        meshes at fixed gaps without interpolation error.
     """
 
     dh_initial_mm: float = 0.05
@@ -129,6 +132,7 @@ class SolverSettings:
     max_newton: int = 30
     max_active_set: int = 30
     rtol: float = 1e-9
+    land_on_gaps_mm: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -631,6 +635,7 @@ def run_case(spec: CaseSpec, progress=None) -> CaseResult:
     rows = [dict(zip(COLUMNS, (2 * R, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0)))]
     h = R
     dh = s.dh_initial_mm
+    landing = sorted((0.5 * g for g in s.land_on_gaps_mm), reverse=True)
     n_fail = 0
     total_newton = 0
     fail_log: list[dict] = []
@@ -641,6 +646,9 @@ def run_case(spec: CaseSpec, progress=None) -> CaseResult:
         dh = min(dh, s.dh_max_mm, h - h_end)
         if h > t:  # resolve the walls meeting: approach h = t geometrically
             dh = min(dh, max(0.01 * t, s.approach_fraction * (h - t)))
+        for hc in landing:
+            if h - dh < hc < h - 1e-12:
+                dh = h - hc
         if dh < s.dh_min_mm and h - h_end > s.dh_min_mm:
             reason = f"step below dh_min_mm={s.dh_min_mm} at gap {2 * h:.4f} mm"
             break

@@ -31,8 +31,9 @@ from typing import Any
 
 from grasprom import datafiles as df
 from grasprom.fe_model import CaseResult, CaseSpec, MeshSpec
+from grasprom.materials import MATERIAL_NAMES
 
-KNOWN_MATERIALS = ("mr", "nh", "le")
+KNOWN_MATERIALS = MATERIAL_NAMES
 """Material keys: Mooney-Rivlin, neo-Hookean, large-strain linear elastic."""
 
 _THICKNESS_DECIMALS = 6
