@@ -125,7 +125,13 @@ def _build_parser() -> argparse.ArgumentParser:
         metavar="DIR",
         help="output directory for sweep_table.csv and force_gap.png (default ./report)",
     )
-    r.add_argument("--logy", action="store_true", help="logarithmic force axis")
+    r.add_argument(
+        "--linear",
+        dest="logy",
+        action="store_false",
+        help="linear force axis on the full-stroke plot (default: logarithmic)",
+    )
+    r.add_argument("--logy", dest="logy", action="store_true", help=argparse.SUPPRESS)
     return p
 
 

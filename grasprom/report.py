@@ -125,8 +125,12 @@ def plot_sweep(
     path: str | os.PathLike[str],
     *,
     logy: bool = False,
+    haptic_force_N: float = 50.0,
 ) -> Path:
-    """Plot force (N) vs jaw gap (mm), one line per thickness, one panel per material.
+    """Plot force (N) vs jaw gap (mm), one line per thickness, one column per material.
+
+    Top row: the whole closing stroke; bottom row: a linear zoom on the haptic range
+    (0 to ``haptic_force_N``) where the walls meet.
 
     Parameters
     ----------
@@ -135,7 +139,9 @@ def plot_sweep(
     path : str or os.PathLike
         PNG file to write.
     logy : bool
-        Logarithmic force axis (non-positive forces are dropped).
+        Logarithmic force axis on the top row (non-positive forces are dropped).
+    haptic_force_N : float
+        Upper force limit of the zoomed bottom row (N).
 
     Returns
     -------
@@ -150,35 +156,40 @@ def plot_sweep(
     data = df.load_sweep(directory)
     mats = sorted(data["material"].unique()) if len(data) else []
     n = max(len(mats), 1)
-    fig, axes = plt.subplots(1, n, figsize=(4.8 * n, 4.2), sharey=True, squeeze=False)
+    fig, axes = plt.subplots(2, n, figsize=(4.8 * n, 7.6), sharey="row", squeeze=False)
     thicknesses = sorted(data["thickness_mm"].unique()) if len(data) else []
     cmap = plt.get_cmap("viridis")
     tmin, tmax = (min(thicknesses), max(thicknesses)) if thicknesses else (0.0, 1.0)
-    for ax, mat in zip(axes[0], mats):
+    for col, mat in enumerate(mats):
         sub = data[data["material"] == mat]
+        top, zoom = axes[0][col], axes[1][col]
         for t, case in sub.groupby("thickness_mm", sort=True):
             x = case["gap_mm"].to_numpy(float)
             y = case["force_N"].to_numpy(float)
-            if logy:
-                keep = y > 0
-                x, y = x[keep], y[keep]
             c = cmap(0.0 if tmax == tmin else (t - tmin) / (tmax - tmin))
             style = "-" if (case["status"] == "complete").all() else "--"
-            ax.plot(x, y, style, color=c, lw=1.2, label=f"t = {t:.2f} mm")
-        ax.set_title(f"material: {mat}")
-        ax.set_xlabel("jaw gap (mm)")
-        ax.invert_xaxis()
-        ax.grid(True, alpha=0.3)
+            keep = y > 0 if logy else slice(None)
+            top.plot(x[keep], y[keep], style, color=c, lw=1.2, label=f"t = {t:.2f} mm")
+            zoom.plot(x, y, style, color=c, lw=1.2)
+        top.set_title(f"material: {mat}")
         if logy:
-            ax.set_yscale("log")
+            top.set_yscale("log")
+        zoom.set_ylim(0.0, haptic_force_N)
+        zoom.set_xlim(2.2 * tmax + 1.0 if thicknesses else 6.0, 1.0)
+        zoom.set_title(f"{mat}: haptic range, walls meeting at gap ~ 2t", fontsize=9)
+        for ax in (top, zoom):
+            ax.set_xlabel("jaw gap (mm)")
+            ax.grid(True, alpha=0.3)
+        top.invert_xaxis()
     axes[0][0].set_ylabel("jaw force (N)")
+    axes[1][0].set_ylabel("jaw force (N), linear")
     if mats:
         axes[0][-1].legend(fontsize=7, ncol=2, title="dashed: partial", title_fontsize=7)
     fig.suptitle(f"Force vs gap: {Path(directory)}")
     fig.tight_layout()
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=120)
+    fig.savefig(out, dpi=110)
     plt.close(fig)
     return out
 
