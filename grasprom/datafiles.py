@@ -35,7 +35,7 @@ from typing import Any
 import pandas as pd
 
 from grasprom import __version__
-from grasprom.fe_model import CaseResult, CaseSpec
+from grasprom.fe_model import COLUMN_DESCRIPTIONS, CONTRACT_COLUMNS, CaseResult, CaseSpec
 
 SCHEMA_VERSION = 1
 """Version of the case sidecar and manifest layout; bump on incompatible change."""
@@ -49,29 +49,10 @@ ERROR_SUFFIX = ".error.txt"
 VALID_STATUSES = ("complete", "partial")
 """Statuses a finished case may carry (see :class:`grasprom.fe_model.CaseResult`)."""
 
-REQUIRED_COLUMNS = (
-    "gap_mm",
-    "jaw_displacement_mm",
-    "force_N",
-    "force_per_length_N_per_mm",
-    "contact_width_mm",
-    "peak_pressure_MPa",
-    "min_J",
-)
+REQUIRED_COLUMNS = CONTRACT_COLUMNS
 """Columns every case CSV must hold."""
 
-COLUMN_UNITS = {
-    "gap_mm": "mm",
-    "jaw_displacement_mm": "mm",
-    "force_N": "N",
-    "force_per_length_N_per_mm": "N/mm",
-    "contact_width_mm": "mm",
-    "peak_pressure_MPa": "MPa",
-    "mean_pressure_MPa": "MPa",
-    "inner_contact_width_mm": "mm",
-    "min_J": "1",
-    "newton_iterations": "1",
-}
+COLUMN_UNITS = {k: v.split(",")[0] for k, v in COLUMN_DESCRIPTIONS.items()}
 """Units of the known CSV columns (``"1"`` = dimensionless)."""
 
 SPEC_UNITS = {

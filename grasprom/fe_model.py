@@ -36,20 +36,28 @@ import scipy.sparse.linalg as spla
 
 from .materials import Material, cofactor, get_material, pointwise_tangent
 
-COLUMNS = (
+#: columns every case CSV must hold (a contract other tools rely on)
+CONTRACT_COLUMNS = (
     "gap_mm",
     "jaw_displacement_mm",
     "force_N",
     "force_per_length_N_per_mm",
     "contact_width_mm",
     "peak_pressure_MPa",
+    "min_J",
+)
+
+#: all columns written, in order
+COLUMNS = (
+    *CONTRACT_COLUMNS[:-1],
     "mean_pressure_MPa",
     "inner_contact_width_mm",
     "min_J",
     "newton_iterations",
 )
 
-COLUMN_UNITS = {
+#: "unit, meaning" of every column
+COLUMN_DESCRIPTIONS = {
     "gap_mm": "mm, jaw gap (distance between the two jaw faces)",
     "jaw_displacement_mm": "mm, travel of one jaw from first touch",
     "force_N": "N, clamping force on one jaw = force_per_length_N_per_mm * jaw_length_mm",
@@ -183,7 +191,7 @@ class CaseResult:
     ----------
     table : pandas.DataFrame
         One row per converged load step, columns :data:`COLUMNS` (units in
-        :data:`COLUMN_UNITS`).
+        :data:`COLUMN_DESCRIPTIONS`).
     status : str
         ``"complete"`` (closed gap or force cap reached) or ``"partial"``.
     info : dict

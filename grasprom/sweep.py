@@ -601,20 +601,25 @@ def _run_pool(workers, runner, specs, todo, handle, bar) -> None:
         futs = {pool.submit(execute_case, runner, i, specs[i]): i for i in todo}
         for fut in cf.as_completed(futs):
             i = futs[fut]
-            try:
-                outcome = fut.result()
-            except Exception as exc:  # noqa: BLE001 - e.g. a worker process died
-                outcome = _Outcome(
-                    index=i,
-                    result=None,
-                    wall_time_s=float("nan"),
-                    error=f"{type(exc).__name__}: {exc}",
-                    traceback=traceback.format_exc(),
-                )
+            outcome = _collect(fut, i)
             handle(outcome)
             bar.update(1)
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _collect(fut, index: int) -> _Outcome:
+    """The outcome of a finished future; a lost worker becomes a failed case."""
+    try:
+        return fut.result()
+    except Exception as exc:  # noqa: BLE001 - e.g. a worker process died or lost the task
+        return _Outcome(
+            index=index,
+            result=None,
+            wall_time_s=float("nan"),
+            error=f"{type(exc).__name__}: {exc}",
+            traceback=traceback.format_exc(),
+        )
 
 
 def _run_dask(scheduler, runner, specs, todo, handle, bar, timeout_s) -> None:
@@ -644,16 +649,7 @@ def _run_dask(scheduler, runner, specs, todo, handle, bar, timeout_s) -> None:
         index = {f.key: i for f, i in zip(futs, todo)}
         for fut in as_completed(futs):
             i = index[fut.key]
-            try:
-                outcome = fut.result()
-            except Exception as exc:  # noqa: BLE001 - e.g. a worker died or lost the task
-                outcome = _Outcome(
-                    index=i,
-                    result=None,
-                    wall_time_s=float("nan"),
-                    error=f"{type(exc).__name__}: {exc}",
-                    traceback=traceback.format_exc(),
-                )
+            outcome = _collect(fut, i)
             handle(outcome)
             bar.update(1)
     finally:
