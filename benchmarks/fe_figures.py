@@ -22,7 +22,9 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     path = argv[0] if argv else "fe_data/default"
     d = load_sweep(path)
-    print(f"{'mat':>4} {'t_mm':>5} {'F@20mm_N':>9} {'F@10mm_N':>9} {'F@2t+1_N':>9} {'gap@10N-2t_mm':>13}")
+    cols = ("F@20mm_N", "F@10mm_N", "F@2t+1_N")
+    head = " ".join(f"{c:>9}" for c in cols)
+    print(f"{'mat':>4} {'t_mm':>5} {head} {'gap@10N-2t_mm':>13}")
     curves = {}
     for (m, t), c in d.groupby(["material", "thickness_mm"]):
         g, f = c["gap_mm"].to_numpy(), c["force_N"].to_numpy()

@@ -6,6 +6,8 @@ sweep
     Run an FE clamping sweep over wall thickness x material (resumable).
 report
     Summary table (text + CSV) and force-gap plot of a sweep directory.
+surrogate {build,check,plot}
+    Tabulated force surrogate: build from a sweep, error table against FE cases, plot.
 
 Exit codes: 0 success, 1 some case failed, 2 bad input (message on stderr), 130 interrupted.
 """
@@ -31,7 +33,7 @@ def _build_parser() -> argparse.ArgumentParser:
         prog="grasprom", description="FE clamping sweeps of a soft tube between rigid jaws."
     )
     p.add_argument("--version", action="version", version=f"grasprom {__version__}")
-    sub = p.add_subparsers(dest="command", required=True, metavar="{sweep,report}")
+    sub = p.add_subparsers(dest="command", required=True, metavar="{sweep,report,surrogate}")
 
     s = sub.add_parser(
         "sweep",
@@ -132,6 +134,39 @@ def _build_parser() -> argparse.ArgumentParser:
         help="linear force axis on the full-stroke plot (default: logarithmic)",
     )
     r.add_argument("--logy", dest="logy", action="store_true", help=argparse.SUPPRESS)
+
+    sg = sub.add_parser("surrogate", help="tabulated force surrogate (build, check, plot)")
+    ssub = sg.add_subparsers(dest="surrogate_command", required=True, metavar="{build,check,plot}")
+    b = ssub.add_parser("build", help="build a surrogate JSON from an FE sweep")
+    b.add_argument("--fe", required=True, metavar="DIR", help="FE sweep, e.g. fe_data/default")
+    b.add_argument("--out", required=True, metavar="FILE", help="surrogate JSON to write")
+    b.add_argument(
+        "--tol",
+        type=float,
+        default=0.005,
+        help="gap-node tolerance relative to max(20 N, F) (default 0.005)",
+    )
+    b.add_argument(
+        "--scheme",
+        choices=("aligned", "naive"),
+        default="aligned",
+        help="thickness interpolation (default aligned)",
+    )
+    b.add_argument(
+        "--holdout",
+        metavar="DIR",
+        default=None,
+        help="extra FE cases whose error figures are stored in the file too",
+    )
+    c = ssub.add_parser("check", help="error table of a surrogate against FE cases")
+    c.add_argument("surrogate", metavar="FILE", help="surrogate JSON")
+    c.add_argument(
+        "--fe", required=True, metavar="DIR", help="directory of FE cases (e.g. fe_data/holdout)"
+    )
+    pl = ssub.add_parser("plot", help="force and stiffness vs gap, surrogate over FE points")
+    pl.add_argument("surrogate", metavar="FILE", help="surrogate JSON")
+    pl.add_argument("--fe", default=None, metavar="DIR", help="FE cases to overlay")
+    pl.add_argument("--out", required=True, metavar="PNG", help="PNG to write")
     return p
 
 
@@ -198,6 +233,52 @@ def _cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_surrogate(args: argparse.Namespace) -> int:
+    import warnings
+
+    from grasprom.datafiles import CorruptCaseError
+    from grasprom.surrogate import (
+        BuildParams,
+        Surrogate,
+        SurrogateFileError,
+        format_errors,
+        plot_surrogate,
+    )
+
+    cmd = f"surrogate {args.surrogate_command}"
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            if args.surrogate_command == "build":
+                params = BuildParams(tol=args.tol, scheme=args.scheme)
+                s = Surrogate.build(args.fe, params=params, holdout_dir=args.holdout)
+                out = s.save(args.out)
+                print(
+                    f"grasprom {cmd}: {s.node_count()} nodes over "
+                    f"{sum(len(s.thicknesses(m)) for m in s.materials)} curves, "
+                    f"{out.stat().st_size} bytes -> {out}"
+                )
+                print(format_errors(s.errors["loo"], "leave-one-thickness-out:"))
+                if "holdout" in s.errors:
+                    print(format_errors(s.errors["holdout"], f"held-out FE ({args.holdout}):"))
+            elif args.surrogate_command == "check":
+                s = Surrogate.load(args.surrogate)
+                print(
+                    f"surrogate {args.surrogate}: scheme {s.scheme}, "
+                    f"{s.node_count()} nodes, built from {s.source}"
+                )
+                print(format_errors(s.check(args.fe), f"against FE cases in {args.fe}:"))
+            else:
+                s = Surrogate.load(args.surrogate)
+                png = plot_surrogate(s, args.out, args.fe)
+                print(f"wrote {png}")
+        for w in caught:
+            print(f"grasprom {cmd}: warning: {w.message}", file=sys.stderr)
+    except (FileNotFoundError, CorruptCaseError, SurrogateFileError, ValueError) as exc:
+        return _error(cmd, exc)
+    return 0
+
+
 def main(argv: Sequence[str] | None = None, *, runner=None) -> int:
     """Entry point of the ``grasprom`` command.
 
@@ -216,6 +297,8 @@ def main(argv: Sequence[str] | None = None, *, runner=None) -> int:
     args = _build_parser().parse_args(argv)
     if args.command == "sweep":
         return _cmd_sweep(args, runner)
+    if args.command == "surrogate":
+        return _cmd_surrogate(args)
     return _cmd_report(args)
 
 
