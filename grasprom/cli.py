@@ -8,6 +8,8 @@ report
     Summary table (text + CSV) and force-gap plot of a sweep directory.
 surrogate {build,check,plot}
     Tabulated force surrogate: build from a sweep, error table against FE cases, plot.
+simulate
+    Run the impedance controller (Python reference) on a handle-angle trajectory.
 
 Exit codes: 0 success, 1 some case failed, 2 bad input (message on stderr), 130 interrupted.
 """
@@ -33,7 +35,9 @@ def _build_parser() -> argparse.ArgumentParser:
         prog="grasprom", description="FE clamping sweeps of a soft tube between rigid jaws."
     )
     p.add_argument("--version", action="version", version=f"grasprom {__version__}")
-    sub = p.add_subparsers(dest="command", required=True, metavar="{sweep,report,surrogate}")
+    sub = p.add_subparsers(
+        dest="command", required=True, metavar="{sweep,report,surrogate,simulate,...}"
+    )
 
     s = sub.add_parser(
         "sweep",
@@ -167,7 +171,82 @@ def _build_parser() -> argparse.ArgumentParser:
     pl.add_argument("surrogate", metavar="FILE", help="surrogate JSON")
     pl.add_argument("--fe", default=None, metavar="DIR", help="FE cases to overlay")
     pl.add_argument("--out", required=True, metavar="PNG", help="PNG to write")
+    _add_simulate_parser(sub)
     return p
+
+
+def _add_simulate_parser(sub) -> None:
+    m = sub.add_parser(
+        "simulate",
+        help="run the impedance controller on a handle-angle trajectory (reference output)",
+        description="Run the Python reference controller on a trajectory CSV (time_s, "
+        "theta_deg) at the controller rate and write the rendered forces and torque.",
+    )
+    m.add_argument("--trajectory", required=True, metavar="CSV", help="columns time_s, theta_deg")
+    m.add_argument("--thickness", type=float, default=None, metavar="MM", help="wall thickness")
+    m.add_argument("--material", default=None, help="mr, nh or le")
+    m.add_argument("--controller", default=None, metavar="JSON", help="controller parameters")
+    src = m.add_mutually_exclusive_group()
+    src.add_argument("--surrogate", default=None, metavar="JSON", help="surrogate file")
+    src.add_argument(
+        "--fe",
+        default=None,
+        metavar="DIR",
+        help=f"FE sweep to build the surrogate from (default {DEFAULT_SWEEP_DIR})",
+    )
+    m.add_argument("--out", required=True, metavar="CSV", help="simulation output CSV")
+
+
+def load_surrogate(surrogate: str | None, fe: str | None):
+    """Load a surrogate file, or build one from an FE sweep (default: the shipped sweep)."""
+    from grasprom.surrogate import Surrogate
+
+    if surrogate:
+        return Surrogate.load(surrogate)
+    return Surrogate.build(fe or DEFAULT_SWEEP_DIR)
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    import dataclasses
+    import os
+    import tempfile
+
+    import pandas as pd
+
+    from grasprom.controller import ControllerParams, load_params, simulate
+
+    try:
+        params = load_params(args.controller) if args.controller else ControllerParams()
+        over = {}
+        if args.thickness is not None:
+            over["thickness_mm"] = args.thickness
+        if args.material is not None:
+            over["material"] = args.material
+        params = dataclasses.replace(params, **over)
+        try:
+            traj = pd.read_csv(args.trajectory)
+        except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+            raise ValueError(f"{args.trajectory}: cannot read trajectory ({exc})") from None
+        sur = load_surrogate(args.surrogate, args.fe)
+        out = simulate(traj, params, sur, source=args.trajectory)
+        dest = Path(args.out)
+        fd, tmp = tempfile.mkstemp(dir=dest.parent if str(dest.parent) else ".", suffix=".tmp")
+        os.close(fd)
+        try:
+            out.to_csv(tmp, index=False)
+            os.replace(tmp, dest)
+        finally:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+    except (OSError, ValueError) as exc:
+        return _error("simulate", exc)
+    n_warn = int(out["tissue_warning"].sum())
+    print(
+        f"grasprom simulate: {len(out)} steps at {1 / params.sample_time_s:g} Hz, "
+        f"max jaw force {out['force_jaw_N'].max():.3g} N, max handle force "
+        f"{out['force_handle_N'].max():.3g} N, tissue warning in {n_warn} steps -> {dest}"
+    )
+    return 0
 
 
 def _error(cmd: str, msg: object) -> int:
@@ -299,6 +378,8 @@ def main(argv: Sequence[str] | None = None, *, runner=None) -> int:
         return _cmd_sweep(args, runner)
     if args.command == "surrogate":
         return _cmd_surrogate(args)
+    if args.command == "simulate":
+        return _cmd_simulate(args)
     return _cmd_report(args)
 
 

@@ -2,8 +2,9 @@
 
 One step, at the sample time ``T`` (default 1 ms, 1 kHz):
 
-1. **Encoder**: the handle angle is quantised to the encoder resolution
-   (``2 pi / encoder_counts_per_rev``) and clamped into the chain's range (flagged).
+1. **Encoder**: the handle angle is quantised to the encoder resolution (one count of the
+   motor encoder, ``2 pi r / (counts L3)`` rad of handle) and clamped into the chain's range
+   (flagged; a NaN angle holds the last valid one, also flagged).
 2. **Kinematics**: jaw gap ``g(theta)`` (mm) from :mod:`grasprom.kinematics` (derived chain).
 3. **Tissue through a virtual coupling**: the tissue force ``F(g)`` comes from the
    :class:`~grasprom.surrogate.Surrogate`; where the walls meet the tissue is far stiffer (hundreds
@@ -233,12 +234,18 @@ class ImpedanceController:
     def step(self, theta_rad: float) -> StepOutput:
         """Advance one sample with the measured handle angle (rad); returns the outputs."""
         p = self.params
-        th = self.quantise(float(theta_rad))
+        th = float(theta_rad)
         clamped = False
-        if not th >= self._th_lo:  # also catches NaN
-            th, clamped = self._th_lo, True
-        elif th > self._th_hi:
-            th, clamped = self._th_hi, True
+        if th != th:  # NaN: hold the last valid angle
+            th = self._prev if self._prev is not None else self._th_hi
+            clamped = True
+        elif math.isinf(th):
+            th = self._th_hi if th > 0 else self._th_lo
+            clamped = True
+        else:
+            clamped = not self._th_lo <= th <= self._th_hi
+            th = self.quantise(th)
+        th = min(max(th, self._th_lo), self._th_hi)  # a count can round past the end stop
         if self._prev is None:
             self._prev = th
         v_raw = (th - self._prev) / p.sample_time_s
@@ -357,3 +364,142 @@ def save_params(params: ControllerParams, path, extra: dict | None = None) -> No
     with os.fdopen(fd, "w") as fh:
         json.dump(d, fh, indent=2)
     os.replace(tmp, p)
+
+
+# ----------------------------------------------------------------------------------------------
+# trajectories (grasprom simulate)
+# ----------------------------------------------------------------------------------------------
+
+TRAJECTORY_COLUMNS = ("time_s", "theta_deg")
+
+SIMULATION_COLUMNS = (
+    "time_s",
+    "theta_deg",
+    "gap_mm",
+    "force_jaw_N",
+    "force_handle_N",
+    "force_handle_spring_N",
+    "torque_Nm",
+    "contact",
+    "tissue_warning",
+    "force_tissue_N",
+    "proxy_gap_mm",
+    "velocity_rad_per_s",
+    "coupling_active",
+    "saturated",
+    "theta_clamped",
+)
+
+
+def validate_trajectory(df, params: ControllerParams, source: str = "trajectory"):
+    """Check a trajectory table (``time_s``, ``theta_deg``); errors name the row and column.
+
+    Returns float arrays ``(time_s, theta_deg)``.
+    """
+    import warnings
+
+    import numpy as np
+    import pandas as pd
+
+    missing = [c for c in TRAJECTORY_COLUMNS if c not in df.columns]
+    if missing:
+        raise ValueError(
+            f"{source}: missing column(s) {', '.join(missing)} (need time_s, theta_deg)"
+        )
+    if len(df) < 2:
+        raise ValueError(f"{source}: needs at least 2 rows, got {len(df)}")
+    out = []
+    for col in TRAJECTORY_COLUMNS:
+        vals = np.asarray(pd.to_numeric(df[col], errors="coerce"), dtype=float)
+        bad = np.flatnonzero(~np.isfinite(vals))
+        if bad.size:
+            raise ValueError(
+                f"{source}: column {col!r}, row {int(bad[0]) + 1}: not a finite number "
+                f"({df[col].iloc[bad[0]]!r})"
+            )
+        out.append(vals)
+    t, th = out
+    dt = np.diff(t)
+    bad = np.flatnonzero(dt <= 0)
+    if bad.size:
+        raise ValueError(
+            f"{source}: column 'time_s' must increase strictly; row {int(bad[0]) + 2} "
+            f"({t[bad[0] + 1]!r} s) does not follow row {int(bad[0]) + 1} ({t[bad[0]]!r} s)"
+        )
+    lo, hi = kin.theta_range_deg(params.chain_params)
+    bad = np.flatnonzero((th < lo - 1e-9) | (th > hi + 1e-9))
+    if bad.size:
+        raise ValueError(
+            f"{source}: column 'theta_deg', row {int(bad[0]) + 1}: {th[bad[0]]!r} deg outside "
+            f"the chain's range [{lo:g}, {hi:g}] deg"
+        )
+    if np.ptp(th) > 0 and np.abs(th).max() <= 0.4:
+        warnings.warn(
+            f"{source}: theta_deg stays within 0.4 deg -- is it in radians? "
+            "(the column must be in degrees)",
+            stacklevel=2,
+        )
+    return t, th
+
+
+def simulate(trajectory, params: ControllerParams, surrogate: Surrogate, source="trajectory"):
+    """Run the controller on a handle-angle trajectory (the reference for all exports).
+
+    The controller runs at its own rate ``1 / sample_time_s`` from the first to the last
+    trajectory time; the angle is interpolated linearly between trajectory rows (a trajectory
+    sampled at the controller rate is used as is).
+
+    Parameters
+    ----------
+    trajectory : pandas.DataFrame
+        Columns ``time_s`` (s, strictly increasing) and ``theta_deg`` (deg, in the chain range).
+    params : ControllerParams
+    surrogate : Surrogate
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per controller step, columns :data:`SIMULATION_COLUMNS`.
+    """
+    import numpy as np
+    import pandas as pd
+
+    t, th = validate_trajectory(trajectory, params, source)
+    T = params.sample_time_s
+    n = int(math.floor((t[-1] - t[0]) / T + 1e-9)) + 1
+    ticks = t[0] + T * np.arange(n)
+    theta = np.interp(ticks, t, th)
+    ctl = ImpedanceController(params, surrogate)
+    rows = [ctl.step(math.radians(x)) for x in theta]
+    out = pd.DataFrame(rows, columns=StepOutput._fields)
+    out.insert(0, "time_s", ticks)
+    return out[list(SIMULATION_COLUMNS)]
+
+
+def grasp_trajectory(
+    *,
+    close_s: float = 1.0,
+    hold_s: float = 2.0,
+    open_s: float = 1.0,
+    theta_open_deg: float = 22.0,
+    theta_closed_deg: float = 0.0,
+    sample_time_s: float = 1e-3,
+):
+    """A grasp-hold-release handle trajectory (cosine ramps), columns ``time_s, theta_deg``."""
+    import numpy as np
+    import pandas as pd
+
+    def ramp(a, b, dur):
+        m = max(int(round(dur / sample_time_s)), 1)
+        s = np.arange(m) / m
+        return a + (b - a) * 0.5 * (1 - np.cos(np.pi * s))
+
+    th = np.concatenate(
+        [
+            ramp(theta_open_deg, theta_closed_deg, close_s),
+            np.full(max(int(round(hold_s / sample_time_s)), 1), theta_closed_deg),
+            ramp(theta_closed_deg, theta_open_deg, open_s),
+            [theta_open_deg],
+        ]
+    )
+    return pd.DataFrame({"time_s": sample_time_s * np.arange(th.size), "theta_deg": th})

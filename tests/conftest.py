@@ -24,3 +24,11 @@ def subprocess_env() -> dict[str, str]:
 def python() -> str:
     """The interpreter running the tests."""
     return sys.executable
+
+
+@pytest.fixture(scope="session")
+def surrogate():
+    """Surrogate built once from the shipped sweep fe_data/default."""
+    from grasprom.surrogate import Surrogate
+
+    return Surrogate.build(ROOT / "fe_data" / "default")
