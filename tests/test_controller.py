@@ -175,8 +175,9 @@ def test_simulate_cli_writes_nothing_on_error(tmp_path):
     traj = tmp_path / "traj.csv"
     pd.DataFrame({"time_s": [0.0, 0.001, 0.001], "theta_deg": [20, 19, 18]}).to_csv(traj)
     out = tmp_path / "sim.csv"
+    cmd = [sys.executable, "-m", "grasprom", "simulate", "--trajectory", str(traj)]
     r = subprocess.run(
-        [sys.executable, "-m", "grasprom", "simulate", "--trajectory", str(traj), "--out", str(out)],
+        [*cmd, "--out", str(out)],
         capture_output=True,
         text=True,
     )
