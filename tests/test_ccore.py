@@ -1,0 +1,76 @@
+"""Parity of the C controller core (gcc, ctypes) with the Python reference, to 1e-9."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import shutil
+
+import numpy as np
+import pytest
+
+from grasprom.ccore import CCore, c_params, tables_source
+from grasprom.controller import ControllerParams, ImpedanceController, grasp_trajectory
+
+
+def _trajectories():
+    slow = grasp_trajectory(close_s=2.0, hold_s=1.0, open_s=2.0)["theta_deg"].to_numpy()
+    fast = grasp_trajectory(close_s=0.15, hold_s=0.3, open_s=0.1)["theta_deg"].to_numpy()
+    rng = np.random.default_rng(7)
+    wiggle = np.clip(11 + 11 * np.sin(np.linspace(0, 40, 3000)) + rng.normal(0, 0.3, 3000), 0, 22)
+    edge = np.array([22.0, 25.0, -3.0, np.nan, 0.0, np.inf, -np.inf, 10.0, np.nan, 0.0])
+    return {"slow": slow, "fast": fast, "wiggle": wiggle, "edge": edge}
+
+
+CASES = [
+    ("mr", 1.4, {}),  # on a grid node
+    ("nh", 0.85, {"damping_Nms_per_rad": 0.02}),  # between nodes
+    ("le", 1.95, {"coupling_stiffness_N_per_mm": 80.0, "torque_limit_Nm": 0.3}),
+    ("le", 0.8, {"encoder_counts_per_rev": 0, "render_spring": False}),
+    ("mr", 2.0, {"velocity_cutoff_Hz": 5.0, "damping_Nms_per_rad": 0.05}),
+]
+
+
+def test_gcc_is_available():
+    """The C parity tests need gcc; CI installs it, so its absence is a failure, not a skip."""
+    assert shutil.which("gcc"), "gcc not found: install it (Debian: apt-get install gcc)"
+
+
+@pytest.mark.parametrize("material,t,extra", CASES)
+def test_c_core_matches_python_reference(surrogate, tmp_path, material, t, extra):
+    p = ControllerParams(thickness_mm=t, material=material, **extra)
+    core = CCore(p, surrogate, tmp_path)
+    for name, traj in _trajectories().items():
+        core.reset()
+        ref = ImpedanceController(p, surrogate)
+        for k, th_deg in enumerate(traj):
+            a = core.step(math.radians(th_deg))
+            b = ref.step(math.radians(th_deg))
+            for field, x, y in zip(a._fields, a, b):
+                if isinstance(y, bool):
+                    assert x == y, (name, k, field)
+                else:
+                    assert x == pytest.approx(y, rel=1e-9, abs=1e-12), (name, k, field, x, y)
+
+
+def test_c_core_clamps_thickness_and_rejects_bad_params(surrogate, tmp_path):
+    p = ControllerParams()
+    core = CCore(p, surrogate, tmp_path)
+    assert core.reset(dataclasses.replace(p, thickness_mm=2.0)) == 0
+    raw = c_params(p)
+    raw.thickness = 2.5  # beyond the table: clamped + flagged
+    assert core.init_raw(raw) == 1
+    ref = ImpedanceController(dataclasses.replace(p, thickness_mm=2.0), surrogate)
+    assert core.step(0.0).force_tissue_N == ref.step(0.0).force_tissue_N
+    for field, value in (("pulley_radius", -1.0), ("sample_time", float("nan")), ("material", 3)):
+        raw = c_params(p)
+        setattr(raw, field, value)
+        with pytest.raises(ValueError, match="rejected"):
+            core.init_raw(raw)
+
+
+def test_tables_are_exact_hex_literals(surrogate):
+    src = tables_source(surrogate, ControllerParams().chain_params)
+    x0 = surrogate._table("mr").s_curves[0][0][1]
+    assert float(x0).hex() in src
+    assert "GC_MATERIALS[GC_N_MATERIALS]" in src
