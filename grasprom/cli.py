@@ -203,7 +203,18 @@ def load_surrogate(surrogate: str | None, fe: str | None):
 
     if surrogate:
         return Surrogate.load(surrogate)
-    return Surrogate.build(fe or DEFAULT_SWEEP_DIR)
+    return Surrogate.build(resolve_sweep_dir(fe or DEFAULT_SWEEP_DIR))
+
+
+def resolve_sweep_dir(directory: str) -> Path:
+    """``directory``; the shipped default sweep is also found from outside the source tree."""
+    path = Path(directory)
+    if directory == DEFAULT_SWEEP_DIR and not path.is_dir():
+        # not run from the source tree: fall back to the checkout holding this package
+        shipped = Path(__file__).resolve().parents[1] / DEFAULT_SWEEP_DIR
+        if shipped.is_dir():
+            return shipped
+    return path
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
@@ -297,12 +308,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     from grasprom.datafiles import CorruptCaseError
     from grasprom.report import make_report
 
-    directory = Path(args.directory)
-    if args.directory == DEFAULT_SWEEP_DIR and not directory.is_dir():
-        # not run from the source tree: fall back to the checkout holding this package
-        shipped = Path(__file__).resolve().parents[1] / DEFAULT_SWEEP_DIR
-        if shipped.is_dir():
-            directory = shipped
+    directory = resolve_sweep_dir(args.directory)
     try:
         files = make_report(directory, args.out, logy=args.logy)
     except (FileNotFoundError, CorruptCaseError) as exc:
