@@ -172,6 +172,7 @@ def _build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--fe", default=None, metavar="DIR", help="FE cases to overlay")
     pl.add_argument("--out", required=True, metavar="PNG", help="PNG to write")
     _add_simulate_parser(sub)
+    _add_tune_parser(sub)
     return p
 
 
@@ -364,6 +365,79 @@ def _cmd_surrogate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_tune_parser(sub) -> None:
+    t = sub.add_parser(
+        "tune",
+        help="choose coupling stiffness, damping and velocity filter for passivity",
+        description="Passivity tuning of the impedance controller over theta x thickness x "
+        "material (Colgate, Abbott-Okamura, Z-width, python-control poles/margins, "
+        "simulation check). Writes controller.json, tuning.json, tuning.txt and plots.",
+    )
+    src = t.add_mutually_exclusive_group()
+    src.add_argument("--surrogate", default=None, metavar="JSON", help="surrogate file")
+    src.add_argument(
+        "--fe",
+        default=None,
+        metavar="DIR",
+        help=f"FE sweep to build the surrogate from (default {DEFAULT_SWEEP_DIR})",
+    )
+    t.add_argument(
+        "--thickness",
+        default=None,
+        metavar="MM",
+        help="comma list of wall thicknesses in mm (default: every grid thickness)",
+    )
+    t.add_argument(
+        "--material", default=None, help="comma list of materials (default: all in the surrogate)"
+    )
+    t.add_argument(
+        "--rate-hz", type=float, default=1000.0, metavar="HZ", help="controller rate (default 1000)"
+    )
+    t.add_argument(
+        "--controller", default=None, metavar="JSON", help="starting controller parameters"
+    )
+    t.add_argument(
+        "--safety", type=float, default=1.25, help="required b / b_required (default 1.25)"
+    )
+    t.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    t.add_argument("--out", default="tuning", metavar="DIR", help="output directory")
+
+
+def _cmd_tune(args: argparse.Namespace) -> int:
+    import dataclasses
+    import math
+    import warnings
+
+    from grasprom.controller import ControllerParams, load_params
+    from grasprom.surrogate import SurrogateFileError
+    from grasprom.tuning import tune, write_outputs
+
+    try:
+        if not (math.isfinite(args.rate_hz) and args.rate_hz > 0):
+            raise ValueError(f"--rate-hz must be > 0, got {args.rate_hz}")
+        thick = None
+        if args.thickness:
+            try:
+                thick = [float(v) for v in args.thickness.split(",") if v.strip()]
+            except ValueError:
+                raise ValueError(
+                    f"--thickness: not a comma list of numbers: {args.thickness!r}"
+                ) from None
+        mats = [m.strip() for m in args.material.split(",") if m.strip()] if args.material else None
+        base = load_params(args.controller) if args.controller else ControllerParams()
+        base = dataclasses.replace(base, sample_time_s=1.0 / args.rate_hz)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            sur = load_surrogate(args.surrogate, args.fe)
+        result = tune(sur, base, thicknesses=thick, materials=mats, safety=args.safety)
+        files = write_outputs(result, args.out, plots=not args.no_plots)
+    except (OSError, ValueError, SurrogateFileError) as exc:
+        return _error("tune", exc)
+    print(result.report())
+    print("wrote " + ", ".join(str(f) for f in files.values()))
+    return 0
+
+
 def main(argv: Sequence[str] | None = None, *, runner=None) -> int:
     """Entry point of the ``grasprom`` command.
 
@@ -386,6 +460,8 @@ def main(argv: Sequence[str] | None = None, *, runner=None) -> int:
         return _cmd_surrogate(args)
     if args.command == "simulate":
         return _cmd_simulate(args)
+    if args.command == "tune":
+        return _cmd_tune(args)
     return _cmd_report(args)
 
 

@@ -11,10 +11,11 @@ One step, at the sample time ``T`` (default 1 ms, 1 kHz):
    of N/mm) than a 1 kHz device can render passively, so the jaw is coupled to the tissue through
    a virtual spring ``k_c`` (N/mm): a proxy gap ``g_p >= g`` solves ``k_c (g_p - g) = F(g_p)``
    (three safeguarded Newton iterations in the bracket ``[g, g + F(g)/k_c]``, warm-started from the
-   last proxy), and the rendered jaw force is ``Fg = k_c (g_p - g)``.  The rendered jaw stiffness
-   is ``k_c k_t / (k_c + k_t) < k_c``; the coupling is reported *active* where the tissue
-   stiffness ``k_t`` exceeds ``k_c``.  In the bending regime (``k_t << k_c``) the proxy sits
-   ``F / k_c`` above the jaw (< 0.1 mm for 1 N at 20 N/mm).
+   last proxy; 30 on the first contact after a reset), and the rendered jaw force is
+   ``Fg = k_c (g_p - g)``.  The rendered jaw stiffness is ``k_c k_t / (k_c + k_t) < k_c``; the
+   coupling is reported *active* where the tissue stiffness ``k_t`` exceeds ``k_c``.  In the
+   bending regime (``k_t << k_c``) the proxy sits ``F / k_c`` above the jaw (about 1 mm for 1 N
+   at the tuned ``k_c`` = 0.95 N/mm: the price of passivity at 1 kHz, see ``grasprom tune``).
 4. **Chain**: handle force ``Fi`` from ``Fg`` by virtual work (plus the return spring when
    ``render_spring``).
 5. **Damping**: virtual damping ``B`` (N m s/rad at the handle pivot) on the handle velocity,
@@ -51,6 +52,9 @@ from .surrogate import Surrogate
 NEWTON_ITERATIONS = 3
 """Newton iterations of the virtual-coupling proxy per step (fixed: deterministic cost)."""
 
+COLD_START_ITERATIONS = 30
+"""Newton iterations on the first contact step after a reset (no warm start yet)."""
+
 
 @dataclass(frozen=True)
 class ControllerParams:
@@ -76,7 +80,9 @@ class ControllerParams:
         Controller period T (s).
     coupling_stiffness_N_per_mm : float
         Virtual coupling stiffness k_c at the jaw (N/mm): the bound on the rendered jaw
-        stiffness (chosen by ``grasprom tune`` for passivity).
+        stiffness.  The defaults of ``k_c``, ``B`` and the cutoff are what ``grasprom tune``
+        chooses for the default device (b = 0.01 N m s/rad) at 1 kHz: passive everywhere with a
+        margin of 1.26.
     force_warning_N : float
         Tissue-safety threshold on the jaw force (N).
     pressure_warning_MPa : float
@@ -99,11 +105,11 @@ class ControllerParams:
     material: str = "mr"
     spring_k_N_per_mm: float = kin.ChainParams().spring_k_N_per_mm
     pulley_radius_mm: float = 10.0
-    damping_Nms_per_rad: float = 0.0
-    velocity_cutoff_Hz: float = 30.0
+    damping_Nms_per_rad: float = 0.001867
+    velocity_cutoff_Hz: float = 200.0
     torque_limit_Nm: float = 1.0
     sample_time_s: float = 1e-3
-    coupling_stiffness_N_per_mm: float = 5.0
+    coupling_stiffness_N_per_mm: float = 0.95
     force_warning_N: float = 50.0
     pressure_warning_MPa: float = 0.33
     jaw_length_mm: float = 10.0
@@ -258,8 +264,9 @@ class ImpedanceController:
         kc = self._kc
         if contact:
             hi = g + f_g / kc
+            n_iter = NEWTON_ITERATIONS if self._gp != math.inf else COLD_START_ITERATIONS
             gp = min(max(self._gp, g), hi)
-            for _ in range(NEWTON_ITERATIONS):
+            for _ in range(n_iter):
                 f_p, k_p = self._tissue(gp)
                 r = kc * (gp - g) - f_p
                 gp = gp - r / (kc + k_p)
