@@ -156,8 +156,10 @@ void gc_init(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c) {
 
 /* ---------------------------------------------------------------- the step */
 
-void gc_step(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c, const gc_material_t *m,
-             double theta, gc_output_t *o) {
+/* the step; use_ext: damp the external velocity ext_v (rad/s) instead of the filtered estimate */
+static void step_impl(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
+                      const gc_material_t *m, double theta, int use_ext, double ext_v,
+                      gc_output_t *o) {
     double th = theta, v_raw, th_deg, g, g1, u, du, fs, f_g, k_g, kc, gp, fg, hi;
     double fi, fi_spring, r_m, torque, lim;
     int clamped = 0, contact, active = 0, i;
@@ -186,11 +188,12 @@ void gc_step(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c, const gc_
     kc = p->coupling_k;
     if (contact) {
         double f_p, k_p, r;
+        int n_iter = isinf(s->gp) ? GC_COLD_START_ITERATIONS : GC_NEWTON_ITERATIONS;
         hi = g + f_g / kc;
         gp = s->gp;
         if (gp < g) gp = g;
         if (gp > hi) gp = hi;
-        for (i = 0; i < GC_NEWTON_ITERATIONS; ++i) {
+        for (i = 0; i < n_iter; ++i) {
             gc_surrogate(m, gp, p->thickness, &f_p, &k_p);
             r = kc * (gp - g) - f_p;
             gp = gp - r / (kc + k_p);
@@ -210,7 +213,7 @@ void gc_step(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c, const gc_
     fi_spring = -fs * du / c->L3;
     fi = (fg * g1 - fs * du) / c->L3;
     if (!p->render_spring) fi -= fi_spring;
-    fi -= p->damping * s->v / (c->L3 * 1e-3);
+    fi -= p->damping * (use_ext ? ext_v : s->v) / (c->L3 * 1e-3);
     r_m = p->pulley_radius * 1e-3;
     torque = fi * r_m;
     lim = p->torque_limit;
@@ -225,9 +228,19 @@ void gc_step(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c, const gc_
     o->gap = g;
     o->proxy_gap = gp;
     o->theta_deg = th_deg;
-    o->velocity = s->v;
+    o->velocity = use_ext ? ext_v : s->v;
     o->contact = contact;
     o->tissue_warning = f_g >= p->force_warning || f_g / s->area >= p->pressure_warning;
     o->coupling_active = active;
     o->theta_clamped = clamped;
+}
+
+void gc_step(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c, const gc_material_t *m,
+             double theta, gc_output_t *o) {
+    step_impl(s, p, c, m, theta, 0, 0.0, o);
+}
+
+void gc_step_ext(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
+                 const gc_material_t *m, double theta, double theta_dot, gc_output_t *o) {
+    step_impl(s, p, c, m, theta, 1, theta_dot, o);
 }

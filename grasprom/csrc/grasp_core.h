@@ -96,7 +96,8 @@ typedef struct {
     int theta_clamped;
 } gc_output_t;
 
-#define GC_NEWTON_ITERATIONS 3
+#define GC_NEWTON_ITERATIONS 3      /* proxy Newton iterations per step (warm start) */
+#define GC_COLD_START_ITERATIONS 30 /* on the first contact after gc_init (no warm start) */
 
 /* Surrogate force (N) and stiffness -dF/dgap (N/mm) at (gap mm, thickness mm); returns the
  * out-of-range flag (gap below the last FE point). Thickness must be inside the range. */
@@ -117,6 +118,12 @@ void gc_init(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c);
 
 void gc_step(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c, const gc_material_t *m,
              double theta, gc_output_t *out);
+
+/* As gc_step, but the damping acts on a measured handle velocity theta_dot (rad/s, finite)
+ * instead of the filtered backward difference (the filter state is still updated; out->velocity
+ * reports theta_dot). Used by the FMU when the importer provides the velocity. */
+void gc_step_ext(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
+                 const gc_material_t *m, double theta, double theta_dot, gc_output_t *out);
 
 #ifdef __cplusplus
 }
