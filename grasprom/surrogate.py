@@ -1400,10 +1400,15 @@ def error_figures(
         ``n_extrapolated``.
     """
     params = params or s.params
+    return _aggregate(s.scheme, ((s, c) for c in cases), params)
+
+
+def _aggregate(scheme: str, pairs, params: BuildParams) -> dict[str, Any]:
+    """Error figures over ``(surrogate, case)`` pairs: per material, all, and per case."""
     acc: dict[str, dict[str, tuple[list, list, list]]] = {"haptic": {}, "full": {}}
     per_case = []
-    for c in cases:
-        e = case_errors(s, c, params)
+    for sur, c in pairs:
+        e = case_errors(sur, c, params)
         row: dict[str, Any] = {
             "stem": c.stem,
             "material": c.material,
@@ -1421,7 +1426,7 @@ def error_figures(
                 "n_extrapolated": r["n_extrapolated"],
             }
         per_case.append(row)
-    out: dict[str, Any] = {"scheme": s.scheme}
+    out: dict[str, Any] = {"scheme": scheme}
     for rng, d in acc.items():
         out[rng] = {
             key: {**_summ(a[0], a[1]), "n_extrapolated": int(sum(a[2]))} for key, a in d.items()
@@ -1455,38 +1460,14 @@ def leave_one_out(
     res = {}
     for sc in schemes:
         base = s.with_scheme(sc)
-        acc: dict[str, dict[str, tuple[list, list, list]]] = {"haptic": {}, "full": {}}
-        per_case = []
-        for c in cases:
-            ts = base.thicknesses(c.material)
-            if not (ts[0] < c.thickness_mm < ts[-1]):
-                continue
-            sub = base.without(c.material, c.thickness_mm)
-            e = case_errors(sub, c, base.params)
-            row: dict[str, Any] = {
-                "stem": c.stem,
-                "material": c.material,
-                "thickness_mm": c.thickness_mm,
-            }
-            for rng in ("haptic", "full"):
-                r = e[rng]
-                for key in (c.material, "all"):
-                    a = acc[rng].setdefault(key, ([], [], []))
-                    a[0].append(r["force_pct"])
-                    a[1].append(r["gap_mm"])
-                    a[2].append(r["n_extrapolated"])
-                row[rng] = {
-                    **_summ([r["force_pct"]], [r["gap_mm"]]),
-                    "n_extrapolated": r["n_extrapolated"],
-                }
-            per_case.append(row)
-        fig: dict[str, Any] = {"scheme": sc}
-        for rng, d in acc.items():
-            fig[rng] = {
-                key: {**_summ(a[0], a[1]), "n_extrapolated": int(sum(a[2]))} for key, a in d.items()
-            }
-        fig["cases"] = per_case
-        res[sc] = fig
+
+        def pairs(base=base):
+            for c in cases:
+                ts = base.thicknesses(c.material)
+                if ts[0] < c.thickness_mm < ts[-1]:
+                    yield base.without(c.material, c.thickness_mm), c
+
+        res[sc] = _aggregate(sc, pairs(), base.params)
     return {"schemes": res}
 
 
