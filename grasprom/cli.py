@@ -10,6 +10,8 @@ surrogate {build,check,plot}
     Tabulated force surrogate: build from a sweep, error table against FE cases, plot.
 simulate
     Run the impedance controller (Python reference) on a handle-angle trajectory.
+export fmu
+    Co-simulation FMU (FMI 2.0 / 3.0) of the controller, native C.
 
 Exit codes: 0 success, 1 some case failed, 2 bad input (message on stderr), 130 interrupted.
 """
@@ -173,6 +175,7 @@ def _build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--out", required=True, metavar="PNG", help="PNG to write")
     _add_simulate_parser(sub)
     _add_tune_parser(sub)
+    _add_export_parser(sub)
     return p
 
 
@@ -438,6 +441,45 @@ def _cmd_tune(args: argparse.Namespace) -> int:
     return 0
 
 
+# ---------------------------------------------------------------- export (FMU; Arduino later)
+def _add_export_parser(sub) -> None:
+    e = sub.add_parser("export", help="export the controller (FMU)")
+    esub = e.add_subparsers(dest="export_command", required=True, metavar="{fmu}")
+    f = esub.add_parser(
+        "fmu",
+        help="co-simulation FMU (FMI 2.0 or 3.0), native C",
+        description="Write a co-simulation FMU of the impedance controller: native C binary "
+        "for this platform (gcc), sources to rebuild elsewhere, documentation.",
+    )
+    f.add_argument("--out", required=True, metavar="FMU", help="FMU file to write")
+    f.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (default 2)")
+    f.add_argument("--surrogate", default=None, metavar="JSON", help="surrogate file")
+    f.add_argument(
+        "--fe",
+        default=None,
+        metavar="DIR",
+        help=f"FE sweep to build the surrogate from (default {DEFAULT_SWEEP_DIR})",
+    )
+    f.add_argument("--params", default=None, metavar="JSON", help="controller parameters")
+
+
+def _cmd_export(args: argparse.Namespace) -> int:
+    from grasprom.controller import ControllerParams, load_params
+    from grasprom.fmu import export_fmu
+
+    try:
+        params = load_params(args.params) if args.params else ControllerParams()
+        sur = load_surrogate(args.surrogate, args.fe)
+        out = export_fmu(args.out, params, sur, fmi_version=args.fmi)
+    except (OSError, ValueError, RuntimeError) as exc:
+        return _error("export fmu", exc)
+    print(
+        f"grasprom export fmu: {out} (FMI {args.fmi}.0 co-simulation, "
+        f"{out.stat().st_size / 1024:.0f} KiB, {params.material} {params.thickness_mm:g} mm)"
+    )
+    return 0
+
+
 def main(argv: Sequence[str] | None = None, *, runner=None) -> int:
     """Entry point of the ``grasprom`` command.
 
@@ -462,6 +504,8 @@ def main(argv: Sequence[str] | None = None, *, runner=None) -> int:
         return _cmd_simulate(args)
     if args.command == "tune":
         return _cmd_tune(args)
+    if args.command == "export":
+        return _cmd_export(args)
     return _cmd_report(args)
 
 

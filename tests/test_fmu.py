@@ -1,0 +1,613 @@
+"""FMU export (FMI 2.0 and 3.0 co-simulation): validation, parity with the Python reference
+through fmpy, ecospy and a C driver (dlopen, no Python), rebuild from sources, valgrind,
+robustness (hypothesis fuzz) and the FMI state machine.
+
+Missing tools (gcc, cmake, valgrind, ecospy) fail the tests when ``CI=true`` and skip them
+otherwise.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import json
+import math
+import os
+import shutil
+import subprocess
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pandas as pd
+import pytest
+from fmpy import extract, read_model_description, simulate_fmu
+from fmpy.fmi1 import FMICallException
+from fmpy.validation import validate_fmu
+from hypothesis import HealthCheck, event, given, settings
+from hypothesis import strategies as st
+
+from grasprom.controller import ControllerParams, ImpedanceController, grasp_trajectory, simulate
+from grasprom.fmu import OUTPUT_COLUMNS, build_driver, export_fmu, start_values
+
+CI = os.environ.get("CI") == "true"
+REL = 1e-9
+REAL_OUT = [n for n, (_, f) in OUTPUT_COLUMNS.items() if f is not None]
+BOOL_OUT = [n for n, (_, f) in OUTPUT_COLUMNS.items() if f is None]
+
+
+def _require(ok: bool, what: str) -> None:
+    """Fail under CI, skip otherwise, when a tool is missing."""
+    if not ok:
+        if CI:
+            pytest.fail(f"{what} is required under CI=true")
+        pytest.skip(f"{what} not available")
+
+
+# ----------------------------------------------------------------------------------- fixtures
+@pytest.fixture(scope="module")
+def fmus(surrogate, tmp_path_factory):
+    """Both FMUs (default parameters), exported once, plus their extracted folders."""
+    _require(shutil.which("gcc") is not None, "gcc")
+    d = tmp_path_factory.mktemp("fmu")
+    out = {}
+    for v in (2, 3):
+        path = export_fmu(d / f"GraspController{v}.fmu", surrogate=surrogate, fmi_version=v)
+        unz = Path(extract(str(path), str(d / f"x{v}")))
+        md = read_model_description(str(path))
+        plat = "linux64" if v == 2 else "x86_64-linux"
+        out[v] = SimpleNamespace(
+            path=path,
+            dir=unz,
+            md=md,
+            token=md.guid if v == 2 else md.instantiationToken,
+            vars={mv.name: mv for mv in md.modelVariables},
+            binary=unz / "binaries" / plat / "GraspController.so",
+        )
+    return out
+
+
+@pytest.fixture(scope="module")
+def driver(tmp_path_factory):
+    _require(shutil.which("gcc") is not None, "gcc")
+    return build_driver(tmp_path_factory.mktemp("driver"))
+
+
+def _trajectories() -> dict[str, np.ndarray]:
+    """Parity trajectories, theta in deg (as tests/test_ccore.py)."""
+    slow = grasp_trajectory(close_s=2.0, hold_s=1.0, open_s=2.0)["theta_deg"].to_numpy()
+    fast = grasp_trajectory(close_s=0.15, hold_s=0.3, open_s=0.1)["theta_deg"].to_numpy()
+    rng = np.random.default_rng(7)
+    wiggle = np.clip(11 + 11 * np.sin(np.linspace(0, 40, 3000)) + rng.normal(0, 0.3, 3000), 0, 22)
+    return {"slow": slow, "fast": fast, "wiggle": wiggle}
+
+
+EDGE = np.array([22.0, 25.0, -3.0, np.nan, 0.0, np.inf, -np.inf, 10.0, np.nan, 0.0, 5.0])
+
+CASES = [
+    ("mr", 1.4, {}),  # on a grid node
+    ("nh", 0.85, {"damping_Nms_per_rad": 0.02}),  # between nodes
+    ("le", 1.95, {"coupling_stiffness_N_per_mm": 80.0, "torque_limit_Nm": 0.3}),
+    ("le", 0.8, {"encoder_counts_per_rev": 0, "render_spring": False}),
+    ("mr", 2.0, {"velocity_cutoff_Hz": 5.0, "damping_Nms_per_rad": 0.05}),
+]
+
+
+def _params(case) -> ControllerParams:
+    material, t, extra = case
+    return ControllerParams(thickness_mm=t, material=material, **extra)
+
+
+def _reference(params, surrogate, theta_deg) -> dict[str, np.ndarray]:
+    """Python reference outputs in FMU units (SI), one row per controller step."""
+    traj = pd.DataFrame(
+        {"time_s": params.sample_time_s * np.arange(theta_deg.size), "theta_deg": theta_deg}
+    )
+    df = simulate(traj, params, surrogate)
+    return {
+        n: df[col].to_numpy(dtype=float) * (f if f is not None else 1.0)
+        for n, (col, f) in OUTPUT_COLUMNS.items()
+    }
+
+
+def _reference_steps(params, surrogate, theta_rad) -> dict[str, np.ndarray]:
+    """Reference by direct stepping (accepts NaN/inf angles)."""
+    ctl = ImpedanceController(params, surrogate)
+    rows = [ctl.step(x) for x in theta_rad]
+    out = {}
+    for n, (col, f) in OUTPUT_COLUMNS.items():
+        vals = np.array([getattr(r, col) for r in rows], dtype=float)
+        out[n] = vals * (f if f is not None else 1.0)
+    return out
+
+
+def _max_rel_err(got: dict, ref: dict) -> float:
+    """Max relative error over the Real outputs (exact match required for Booleans)."""
+    worst = 0.0
+    for n in REAL_OUT:
+        a, b = np.asarray(got[n], float), np.asarray(ref[n], float)
+        assert a.shape == b.shape, n
+        err = np.abs(a - b) / np.maximum(np.abs(b), 1e-3)
+        assert np.all(np.abs(a - b) <= REL * np.abs(b) + 1e-12), (n, float(err.max()))
+        worst = max(worst, float(err.max()))
+    for n in BOOL_OUT:
+        assert np.array_equal(np.asarray(got[n], bool), np.asarray(ref[n], bool)), n
+    return worst
+
+
+def _driver_args(fmu, params) -> list[str]:
+    args = ["-t", str(fmu.vars["theta"].valueReference)]
+    for name, value in start_values(params).items():
+        v = fmu.vars[name]
+        kind = {"Real": "-r", "Float64": "-r", "Integer": "-i", "Int32": "-i"}.get(v.type, "-b")
+        args += [kind, f"{v.valueReference}={float(value)!r}"]
+    args += ["-o", ",".join(str(fmu.vars[n].valueReference) for n in REAL_OUT)]
+    args += ["-O", ",".join(str(fmu.vars[n].valueReference) for n in BOOL_OUT)]
+    return args
+
+
+def _run_driver(driver, fmu, version, binary, params, theta_rad) -> dict[str, np.ndarray]:
+    stdin = "\n".join(repr(float(x)) for x in theta_rad) + "\n"
+    res = subprocess.run(
+        [str(driver), str(version), str(binary), fmu.token, "run", *_driver_args(fmu, params)],
+        input=stdin, capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    table = np.array([[float(x) for x in line.split()] for line in res.stdout.splitlines()])
+    names = REAL_OUT + BOOL_OUT
+    return {n: table[:, i] for i, n in enumerate(names)}
+
+
+# ----------------------------------------------------------------------------------- tests
+@pytest.mark.parametrize("version", [2, 3])
+def test_fmu_validates_and_has_the_contracted_layout(fmus, version):
+    fmu = fmus[version]
+    assert validate_fmu(str(fmu.path)) == []
+    md = fmu.md
+    assert md.fmiVersion == f"{version}.0"
+    assert md.defaultExperiment.stepSize == "0.001" or float(md.defaultExperiment.stepSize) == 1e-3
+    assert fmu.binary.is_file()
+    assert (fmu.dir / "documentation" / "index.html").is_file()
+    src = fmu.dir / "sources"
+    assert (src / "fmu_model.c").is_file() and (src / "grasp_tables.h").is_file()
+    assert (src / "buildDescription.xml").is_file() == (version == 3)
+    v = fmu.vars
+    assert v["theta"].causality == "input" and v["theta"].unit == "rad"
+    assert v["theta"].displayUnit == "deg"
+    assert v["theta_dot"].causality == "input"
+    for name, unit, disp in (("thickness", "m", "mm"), ("gap", "m", "mm")):
+        assert (v[name].unit, v[name].displayUnit) == (unit, disp)
+    assert v["torque"].unit == "N.m" and v["force_handle"].unit == "N"
+    assert v["material"].type in ("Integer", "Int32")
+    for name in ("contact", "tissue_warning"):
+        assert v[name].type == "Boolean" and v[name].causality == "output"
+    expected_params = {"thickness", "material", "spring_k", "damping", "pulley_radius",
+                       "torque_limit", "force_warning", "pressure_warning"}  # fmt: skip
+    assert expected_params <= {n for n, x in v.items() if x.causality == "parameter"}
+    for x in md.modelVariables:
+        assert x.description
+        if x.causality == "independent":
+            continue
+        assert x.start is not None, x.name
+        if x.type != "Boolean":
+            assert x.min is not None and x.max is not None, x.name
+    html = (fmu.dir / "documentation" / "index.html").read_text()
+    assert "theta" in html and "Equations" in html
+
+
+@pytest.mark.parametrize("case", CASES, ids=[f"{m}-{t}" for m, t, _ in CASES])
+def test_fmpy_matches_python_reference(fmus, surrogate, case, record_property):
+    params = _params(case)
+    worst = 0.0
+    for name, theta_deg in _trajectories().items():
+        ref = _reference(params, surrogate, theta_deg)
+        n = theta_deg.size
+        T = params.sample_time_s
+        sig = np.zeros(n, dtype=[(c, np.float64) for c in ("time", "theta", "theta_dot")])
+        sig["time"] = T * np.arange(n)
+        sig["theta"] = np.radians(theta_deg)
+        for version in (2, 3):
+            fmu = fmus[version]
+            res = simulate_fmu(
+                str(fmu.dir), model_description=fmu.md, start_time=0.0, stop_time=n * T,
+                output_interval=T, input=sig, start_values=start_values(params),
+                output=REAL_OUT + BOOL_OUT,
+            )  # fmt: skip
+            assert res.shape[0] == n + 1, (name, version)
+            # row 0: start values (before the first step); row k+1 = reference step k
+            got = {k: res[k][1:] for k in REAL_OUT + BOOL_OUT}
+            worst = max(worst, _max_rel_err(got, ref))
+            assert res["torque"][0] == 0.0 and not res["contact"][0]
+    record_property("fmpy_max_rel_err", worst)
+    print(f"fmpy max relative error {worst:.3g}")
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_c_driver_runs_the_binary_without_python(fmus, driver, surrogate, version):
+    fmu = fmus[version]
+    worst = 0.0
+    trajs = _trajectories()
+    for case in CASES[:3]:
+        params = _params(case)
+        for name in ("fast", "wiggle"):
+            th = np.radians(trajs[name])
+            worst = max(worst, _max_rel_err(
+                _run_driver(driver, fmu, version, fmu.binary, params, th),
+                _reference_steps(params, surrogate, th)))  # fmt: skip
+        th = np.radians(EDGE)  # NaN, inf, out of range: clamped as the reference does
+        got = _run_driver(driver, fmu, version, fmu.binary, params, th)
+        worst = max(worst, _max_rel_err(got, _reference_steps(params, surrogate, th)))
+    print(f"C driver (FMI {version}) max relative error {worst:.3g}")
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_ecospy_matches_python_reference(fmus, surrogate, version):
+    try:
+        from ecospy import EcosSimulation, EcosSimulationStructure
+    except (ImportError, OSError) as exc:  # OSError: libtbb12 missing
+        _require(False, f"ecospy ({exc})")
+    fmu = fmus[version]
+    worst = 0.0
+    for case, traj in ((CASES[1], "slow"), (CASES[2], "wiggle")):
+        params = _params(case)
+        th = np.radians(_trajectories()[traj])
+        ref = _reference_steps(params, surrogate, th)
+        got = {n: [] for n in REAL_OUT + BOOL_OUT}
+        with EcosSimulationStructure() as ss:
+            ss.add_model("ctl", str(fmu.path))
+            ss.add_parameter_set("p", {f"ctl::{k}": (float(v) if isinstance(v, float) else v)
+                                       for k, v in start_values(params).items()})  # fmt: skip
+            with EcosSimulation(structure=ss, step_size=params.sample_time_s) as sim:
+                sim.init(parameter_set="p")
+                for x in th:
+                    sim.set_real("ctl::theta", float(x))
+                    sim.step(1)
+                    for n in REAL_OUT:
+                        got[n].append(sim.get_real(f"ctl::{n}"))
+                    for n in BOOL_OUT:
+                        got[n].append(sim.get_bool(f"ctl::{n}"))
+                sim.terminate()
+        worst = max(worst, _max_rel_err(got, ref))
+    print(f"ecospy (FMI {version}) max relative error {worst:.3g}")
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_fmpy_compile_rebuilds_from_sources(fmus, driver, surrogate, tmp_path, version):
+    _require(shutil.which("cmake") is not None, "cmake (pip install cmake)")
+    from fmpy.build import build_platform_binary
+
+    fmu = fmus[version]
+    d = tmp_path / "fmu"
+    shutil.copytree(fmu.dir, d)
+    shutil.rmtree(d / "binaries")
+    build_platform_binary(d.resolve())  # what `fmpy compile` runs (cmake + the C compiler)
+    binary = d / fmu.binary.relative_to(fmu.dir)
+    assert binary.is_file()
+    params = _params(CASES[2])
+    th = np.radians(_trajectories()["fast"])
+    err = _max_rel_err(_run_driver(driver, fmu, version, binary, params, th),
+                       _reference_steps(params, surrogate, th))  # fmt: skip
+    print(f"rebuilt FMI {version} binary max relative error {err:.3g}")
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_valgrind_1000_instantiate_step_free(fmus, driver, version):
+    _require(shutil.which("valgrind") is not None, "valgrind (apt-get install valgrind)")
+    fmu = fmus[version]
+    cmd = ["valgrind", "--leak-check=full", "--error-exitcode=1", str(driver), str(version),
+           str(fmu.binary), fmu.token, "leak", "1000",
+           *_driver_args(fmu, ControllerParams())]  # fmt: skip
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert "ERROR SUMMARY: 0 errors" in res.stderr
+    assert "definitely lost" not in res.stderr or "definitely lost: 0 bytes" in res.stderr
+    assert "leak cycles 1000" in res.stdout
+
+
+# ----------------------------------------------------------------------------------- fmpy slave
+class _Slave:
+    """Low-level FMI calls through fmpy returning the status (0..4) and capturing the log."""
+
+    def __init__(self, fmu, version):
+        from fmpy.fmi2 import FMU2Slave
+        from fmpy.fmi3 import FMU3Slave
+
+        self.v = version
+        self.fmu = fmu
+        cls = FMU2Slave if version == 2 else FMU3Slave
+        self.s = cls(guid=fmu.token, unzipDirectory=str(fmu.dir),
+                     modelIdentifier="GraspController", instanceName="t")  # fmt: skip
+        self.log: list[tuple[int, str]] = []
+        if version == 2:
+            from fmpy import calloc, free
+            from fmpy.fmi2 import (
+                fmi2CallbackAllocateMemoryTYPE,
+                fmi2CallbackFreeMemoryTYPE,
+                fmi2CallbackFunctions,
+                fmi2CallbackLoggerTYPE,
+            )
+            from fmpy.logging import addLoggerProxy
+
+            cb = fmi2CallbackFunctions()
+            cb.logger = fmi2CallbackLoggerTYPE(self._log2)
+            cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+            cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+            addLoggerProxy(ctypes.byref(cb))
+            self.cb = cb
+        self.c = None
+
+    def _log2(self, env, name, status, category, message):
+        self.log.append((status, message.decode()))
+
+    def _log3(self, env, status, category, message):
+        self.log.append((status, message.decode()))
+
+    def _call(self, fname, *args):
+        try:
+            r = getattr(self.s, fname)(*args)
+        except FMICallException as exc:
+            return exc.status
+        return r
+
+    def instantiate(self, token=None, kind=1):
+        from fmpy.fmi3 import fmi3IntermediateUpdateCallback, fmi3LogMessageCallback
+
+        tok = (token or self.fmu.token).encode()
+        if self.v == 2:
+            self.c = self.s.fmi2Instantiate(b"t", kind, tok, b"", ctypes.byref(self.cb), 0, 0)
+        else:
+            self.cb3 = fmi3LogMessageCallback(self._log3)
+            req = (ctypes.c_uint32 * 0)()
+            self.c = self.s.fmi3InstantiateCoSimulation(
+                b"t", tok, b"", False, False, False, False, req, 0, None, self.cb3,
+                fmi3IntermediateUpdateCallback(),
+            )  # fmt: skip
+        return self.c
+
+    def vr(self, name):
+        return self.fmu.vars[name].valueReference
+
+    def set(self, name, value):
+        t = self.fmu.vars[name].type
+        vr = (ctypes.c_uint32 * 1)(self.vr(name))
+        if t in ("Real", "Float64"):
+            val = (ctypes.c_double * 1)(value)
+            fn = "fmi2SetReal" if self.v == 2 else "fmi3SetFloat64"
+        elif t in ("Integer", "Int32"):
+            val = (ctypes.c_int32 * 1)(value)
+            fn = "fmi2SetInteger" if self.v == 2 else "fmi3SetInt32"
+        else:
+            val = (ctypes.c_int * 1)(int(bool(value))) if self.v == 2 else (ctypes.c_bool * 1)(
+                bool(value))
+            fn = "fmi2SetBoolean" if self.v == 2 else "fmi3SetBoolean"
+        args = (self.c, vr, 1, val) if self.v == 2 else (self.c, vr, 1, val, 1)
+        return self._call(fn, *args)
+
+    def set_raw(self, fn, vr_, value, ctype):
+        vr = (ctypes.c_uint32 * 1)(vr_)
+        val = (ctype * 1)(value)
+        args = (self.c, vr, 1, val) if self.v == 2 else (self.c, vr, 1, val, 1)
+        return self._call(fn, *args)
+
+    def get(self, name):
+        t = self.fmu.vars[name].type
+        vr = (ctypes.c_uint32 * 1)(self.vr(name))
+        if t in ("Real", "Float64"):
+            val = (ctypes.c_double * 1)()
+            fn = "fmi2GetReal" if self.v == 2 else "fmi3GetFloat64"
+        else:
+            val = (ctypes.c_int * 1)() if self.v == 2 else (ctypes.c_bool * 1)()
+            fn = "fmi2GetBoolean" if self.v == 2 else "fmi3GetBoolean"
+        args = (self.c, vr, 1, val) if self.v == 2 else (self.c, vr, 1, val, 1)
+        st = self._call(fn, *args)
+        return st, val[0]
+
+    def enter(self, t0=0.0):
+        if self.v == 2:
+            st = self._call("fmi2SetupExperiment", self.c, 0, 0.0, t0, 0, 0.0)
+            return max(st, self._call("fmi2EnterInitializationMode", self.c))
+        return self._call("fmi3EnterInitializationMode", self.c, False, 0.0, t0, False, 0.0)
+
+    def exit(self):
+        return self._call(f"fmi{self.v}ExitInitializationMode", self.c)
+
+    def step(self, t, h):
+        if self.v == 2:
+            return self._call("fmi2DoStep", self.c, t, h, 1)
+        b = ctypes.c_bool()
+        x = ctypes.c_double()
+        return self._call("fmi3DoStep", self.c, t, h, True, ctypes.byref(b), ctypes.byref(b),
+                          ctypes.byref(b), ctypes.byref(x))  # fmt: skip
+
+    def terminate(self):
+        return self._call(f"fmi{self.v}Terminate", self.c)
+
+    def reset(self):
+        return self._call(f"fmi{self.v}Reset", self.c)
+
+    def free(self):
+        if self.c:
+            getattr(self.s, f"fmi{self.v}FreeInstance")(self.c)
+        self.c = None
+
+    def last(self) -> str:
+        return self.log[-1][1] if self.log else ""
+
+
+@pytest.fixture(scope="module")
+def slaves(fmus):
+    return {v: _Slave(fmus[v], v) for v in (2, 3)}
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_state_machine_misuse_returns_error_and_logs_why(slaves, version):
+    s = slaves[version]
+    assert s.instantiate(token="{wrong}") is None
+    assert "token" in s.last()
+    if version == 2:
+        assert s.instantiate(kind=0) is None  # model exchange
+        assert "co-simulation only" in s.last()
+    assert s.instantiate()
+    try:
+        assert s.step(0.0, 1e-3) == 3 and "not allowed in instantiated" in s.last()
+        assert s.get("torque")[0] == 3 and "not allowed" in s.last()
+        assert s.exit() == 3 and "not allowed" in s.last()
+        assert s.terminate() == 3
+        assert s.set("torque", 1.0) == 3 and "output" in s.last()
+        assert s.set("thickness", math.nan) == 3 and "not finite" in s.last()
+        assert s.set("material", 7) == 3 and "rejected" in s.last()
+        assert s.set("thickness", 5e-3) == 1 and "clamped" in s.last()
+        real_fn = "fmi2SetReal" if version == 2 else "fmi3SetFloat64"
+        assert s.set_raw(real_fn, 9999, 1.0, ctypes.c_double) == 3
+        assert "unknown value reference" in s.last()
+        assert s.set_raw(real_fn, s.vr("material"), 1.0, ctypes.c_double) == 3
+        assert "not of type" in s.last()
+        assert s.set("thickness", 1.4e-3) == 0
+        assert s.enter() == 0
+        assert s.enter() == 3
+        assert s.get("torque") == (0, 0.0)  # start value until the first step
+        assert s.exit() == 0
+        assert s.set("damping", 0.1) == 3 and "fixed" in s.last()
+        assert s.step(0.0, 1.5e-3) == 3 and "multiple" in s.last()
+        assert s.step(0.0, -1e-3) == 3
+        assert s.step(0.5, 1e-3) == 3 and "does not match" in s.last()
+        assert s.set("theta", 0.1) == 0
+        assert s.step(0.0, 3e-3) == 0  # the rejected calls changed nothing
+        assert s.get("time") == (0, pytest.approx(3e-3))
+        assert s.get("contact") == (0, True)
+        assert s.set("theta", math.inf) == 1 and "clamped" in s.last()
+        assert s.step(3e-3, 1e-3) == 0
+        assert s.get("theta_clamped") == (0, True)
+        assert s.terminate() == 0
+        assert s.step(4e-3, 1e-3) == 3 and "terminated" in s.last()
+        assert s.get("torque")[0] == 0  # getters allowed after terminate
+        assert s.reset() == 0
+        assert s.enter() == 0 and s.exit() == 0
+        assert s.step(0.0, 1e-3) == 0
+        # inconsistent parameters: ExitInitializationMode rejects, the instance stays usable
+        assert s.reset() == 0
+        assert s.set("velocity_cutoff", 900.0) == 0
+        assert s.enter() == 0
+        assert s.exit() == 3 and "Nyquist" in s.last()
+        assert s.set("velocity_cutoff", 30.0) == 0
+        assert s.exit() == 0
+    finally:
+        s.free()
+
+
+def _reals(lo, hi):
+    special = st.sampled_from([math.nan, math.inf, -math.inf, 1e300, -1e300, 0.0, -1.0, 5e-324])
+    return st.one_of(st.floats(lo, hi), st.floats(allow_nan=True, allow_infinity=True), special)
+
+
+FUZZ_PARAMS = ("thickness", "sample_time", "velocity_cutoff", "pulley_radius",
+               "torque_limit", "coupling_stiffness", "damping", "diameter", "spring_k",
+               "force_warning")  # fmt: skip
+
+
+@st.composite
+def _fuzz_case(draw, fmu):
+    p = {}
+    for name in FUZZ_PARAMS:
+        v = fmu.vars[name]
+        if draw(st.booleans()):
+            p[name] = draw(_reals(float(v.min), float(v.max)))
+    if draw(st.booleans()):
+        p["material"] = draw(st.integers(-2, 4))
+    if draw(st.booleans()):
+        p["encoder_counts"] = draw(st.integers(-5, 2**31 - 1))
+    p["use_theta_dot"] = draw(st.booleans())
+    p["render_spring"] = draw(st.booleans())
+    th = draw(st.lists(_reals(0.0, 0.384), min_size=1, max_size=8))
+    thd = draw(st.lists(_reals(-50.0, 50.0), min_size=len(th), max_size=len(th)))
+    k = draw(st.sampled_from([1, 1, 2, 1.5]))
+    return p, th, thd, k
+
+
+def _expected_set_status(var, x) -> int:
+    if var.type in ("Boolean",):
+        return 0
+    lo, hi = float(var.min), float(var.max)
+    if var.type in ("Integer", "Int32"):
+        return 0 if lo <= x <= hi else 3
+    if var.causality == "input":
+        return 0 if lo <= x <= hi else 1
+    if not math.isfinite(x):
+        return 3
+    return 0 if lo <= x <= hi else 1
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_fuzz_inputs_and_parameters_never_crash(fmus, slaves, version):
+    fmu, s = fmus[version], slaves[version]
+
+    @settings(max_examples=300, deadline=None, suppress_health_check=list(HealthCheck))
+    @given(case=_fuzz_case(fmu))
+    def run(case):
+        p, th, thd, k = case
+        s.log.clear()
+        assert s.instantiate()
+        try:
+            eff = {n: float(fmu.vars[n].start) for n in FUZZ_PARAMS}
+            for name, x in p.items():
+                var = fmu.vars[name]
+                st_ = s.set(name, x)
+                assert st_ == _expected_set_status(var, x), (name, x, s.last())
+                if name in eff and st_ < 3:
+                    eff[name] = min(max(x, float(var.min)), float(var.max))
+            assert s.enter() == 0
+            # the checks of ExitInitializationMode, in the same floating-point operations
+            ok = (eff["velocity_cutoff"] < 0.5 / eff["sample_time"]
+                  and eff["diameter"] * 1e3 > 2.0 * (eff["thickness"] * 1e3))  # fmt: skip
+            st_exit = s.exit()
+            assert st_exit == (0 if ok else 3), (eff, s.last())
+            event("initialised" if ok else "rejected at ExitInitializationMode")
+            if not ok:
+                assert s.step(0.0, eff["sample_time"]) == 3
+                return
+            T = eff["sample_time"]
+            t = 0.0
+            for a, b in zip(th, thd):
+                assert s.set("theta", a) == _expected_set_status(fmu.vars["theta"], a)
+                assert s.set("theta_dot", b) == _expected_set_status(fmu.vars["theta_dot"], b)
+                h = k * T
+                st_step = s.step(t, h)
+                if k == 1.5:
+                    assert st_step == 3 and "multiple" in s.last()
+                    h = T
+                    st_step = s.step(t, h)
+                assert st_step == 0, s.last()
+                t += h
+                for n in REAL_OUT:
+                    st_, x = s.get(n)
+                    var = fmu.vars[n]
+                    assert st_ == 0 and math.isfinite(x), (n, x)
+                    assert float(var.min) <= x <= float(var.max), (n, x, var.min, var.max)
+            assert s.terminate() == 0
+        finally:
+            s.free()
+
+    run()
+
+
+# ----------------------------------------------------------------------------------- CLI
+def test_cli_export_fmu(tmp_path, capsys):
+    _require(shutil.which("gcc") is not None, "gcc")
+    from grasprom.cli import main
+    from grasprom.controller import save_params
+
+    ctl = tmp_path / "controller.json"
+    save_params(ControllerParams(thickness_mm=1.2, material="nh", damping_Nms_per_rad=0.01), ctl)
+    out = tmp_path / "G.fmu"
+    assert main(["export", "fmu", "--out", str(out), "--fmi", "3", "--params", str(ctl)]) == 0
+    assert validate_fmu(str(out)) == []
+    md = read_model_description(str(out))
+    v = {x.name: x for x in md.modelVariables}
+    assert float(v["thickness"].start) == pytest.approx(1.2e-3)
+    assert int(v["material"].start) == 1 and float(v["damping"].start) == 0.01
+    assert "FMI 3.0" in capsys.readouterr().out
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"pulley_radius_mm": 1e6}))
+    assert main(["export", "fmu", "--out", str(tmp_path / "b.fmu"), "--params", str(bad)]) == 2
+    assert "pulley_radius" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["export", "fmu", "--out", str(out), "--fmi", "4"])
