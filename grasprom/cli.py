@@ -443,8 +443,8 @@ def _cmd_tune(args: argparse.Namespace) -> int:
 
 # ---------------------------------------------------------------- export (FMU; Arduino later)
 def _add_export_parser(sub) -> None:
-    e = sub.add_parser("export", help="export the controller (FMU)")
-    esub = e.add_subparsers(dest="export_command", required=True, metavar="{fmu}")
+    e = sub.add_parser("export", help="export the controller (FMU, Arduino)")
+    esub = e.add_subparsers(dest="export_command", required=True, metavar="{fmu,arduino}")
     f = esub.add_parser(
         "fmu",
         help="co-simulation FMU (FMI 2.0 or 3.0), native C",
@@ -461,18 +461,50 @@ def _add_export_parser(sub) -> None:
         help=f"FE sweep to build the surrogate from (default {DEFAULT_SWEEP_DIR})",
     )
     f.add_argument("--params", default=None, metavar="JSON", help="controller parameters")
+    a = esub.add_parser(
+        "arduino",
+        help="ATmega328P (Arduino Uno) package: PROGMEM tables, core, sketch, Makefile",
+        description="Write the Arduino export: fixed-point tables in PROGMEM generated from the "
+        "surrogate for a tolerance, the controller core, an example sketch and an arduino-mk "
+        "Makefile; prints the flash/RAM/cycle/error budget (measured with avr-gcc + simavr).",
+    )
+    a.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    a.add_argument("--surrogate", default=None, metavar="JSON", help="surrogate file")
+    a.add_argument(
+        "--fe",
+        default=None,
+        metavar="DIR",
+        help=f"FE sweep to build the surrogate from (default {DEFAULT_SWEEP_DIR})",
+    )
+    a.add_argument("--params", default=None, metavar="JSON", help="controller parameters")
+    a.add_argument(
+        "--tol",
+        type=float,
+        default=0.01,
+        help="table tolerance, fraction of the largest rendered jaw force (default 0.01)",
+    )
+    a.add_argument(
+        "--float", dest="fixed_point", action="store_false", help="float build instead of Q-format"
+    )
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
     from grasprom.controller import ControllerParams, load_params
-    from grasprom.fmu import export_fmu
 
     try:
         params = load_params(args.params) if args.params else ControllerParams()
         sur = load_surrogate(args.surrogate, args.fe)
+        if args.export_command == "arduino":
+            from grasprom.arduino import export_main
+
+            return export_main(
+                args.out, surrogate=sur, params=params, tol=args.tol, fixed_point=args.fixed_point
+            )
+        from grasprom.fmu import export_fmu
+
         out = export_fmu(args.out, params, sur, fmi_version=args.fmi)
     except (OSError, ValueError, RuntimeError) as exc:
-        return _error("export fmu", exc)
+        return _error(f"export {args.export_command}", exc)
     print(
         f"grasprom export fmu: {out} (FMI {args.fmi}.0 co-simulation, "
         f"{out.stat().st_size / 1024:.0f} KiB, {params.material} {params.thickness_mm:g} mm)"

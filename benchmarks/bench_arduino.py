@@ -1,0 +1,65 @@
+"""Benchmark of the Arduino export (printed, not asserted).
+
+For table tolerances 0.25 %, 0.5 %, 1 % (default) and 2 % of the jaw-force full scale: table
+bytes and grid nodes, flash and RAM of tables + core on the ATmega328P (avr-gcc -Os, avr-size),
+cycles per controller step under simavr (max and mean over every material at four thicknesses
+on a closing/opening sweep of every encoder count), and the error against the float Python
+reference (handle force in % of the full-scale handle force, jaw force in % of the jaw-force
+full scale) over every material, every thickness node and midpoint, every count.  Then the
+float build of the same code path (``GF_FLOAT``) at the default tolerance.
+
+Needs gcc, gcc-avr, avr-libc, binutils-avr, simavr and libsimavr-dev.
+
+Run: ``python benchmarks/bench_arduino.py [fe_data/default]``
+"""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from grasprom import arduino as ar
+from grasprom.controller import ControllerParams
+from grasprom.surrogate import Surrogate
+
+
+def row(sur: Surrogate, params: ControllerParams, tol: float, fixed: bool, tmp: Path) -> str:
+    t = ar.build_tables(sur, params, tol, fixed_point=fixed)
+    size = ar.measure_size(t, tmp / "size")
+    cases = ar.default_cases(t, sur)
+    avr = ar.run_simavr(ar.build_avr_test(t, cases, tmp / "avr"), cases, tmp / "avr")
+    if fixed:  # host == AVR bit for bit: the dense error run is done on the host
+        dense = ar.default_cases(t, sur, dense=True)
+        err = ar.error_figures(t, sur, dense, ar.run_host(t, dense, tmp / "host"))
+    else:
+        err = ar.error_figures(t, sur, cases, avr.run)
+    nodes = "/".join(str(len(m.x)) for m in t.materials)
+    return (
+        f"{'fixed' if fixed else 'float':>5} {100 * tol:6.2f} {t.table_bytes:7d} {nodes:>9} "
+        f"{size.flash_B:7d} {size.ram_B:5d} {int(avr.cycles.max()):7d} "
+        f"{avr.cycles.mean():7.0f} {err.handle_pct_fs:9.3f} {err.jaw_pct_fs:9.3f}"
+    )
+
+
+def main(argv: list[str]) -> None:
+    sweep = argv[0] if argv else "fe_data/default"
+    sur = Surrogate.build(sweep)
+    params = ControllerParams()
+    t0 = time.perf_counter()
+    print(f"Arduino export, ATmega328P @ {ar.F_CPU_HZ / 1e6:g} MHz, default ControllerParams")
+    print(
+        f"budget: flash {ar.FLASH_BUDGET_B} B, RAM {ar.RAM_BUDGET_B} B, "
+        f"{ar.CYCLE_BUDGET} cycles/step, handle-force error {100 * ar.ERROR_BUDGET:g} % FS"
+    )
+    print(" core  tol%  tableB  nodes m/n/l  flashB  ramB  cycmax cycmean handle%FS  jaw%jawFS")
+    with tempfile.TemporaryDirectory() as tmp:
+        for i, tol in enumerate((0.0025, 0.005, 0.01, 0.02)):
+            print(row(sur, params, tol, True, Path(tmp) / f"fx{i}"), flush=True)
+        print(row(sur, params, 0.01, False, Path(tmp) / "fl"), flush=True)
+    print(f"({time.perf_counter() - t0:.1f} s)")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
