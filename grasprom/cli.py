@@ -10,6 +10,12 @@ surrogate {build,check,plot}
     Tabulated force surrogate: build from a sweep, error table against FE cases, plot.
 simulate
     Run the impedance controller (Python reference) on a handle-angle trajectory.
+tune
+    Passivity tuning of the controller with python-control.
+export {fmu,arduino}
+    FMU (FMI 2/3 co-simulation) or Arduino package of the controller.
+diagnose, synth
+    Sim-to-real gap diagnosis of measured trials; synthetic trials with withheld effects.
 export fmu
     Co-simulation FMU (FMI 2.0 / 3.0) of the controller, native C.
 
@@ -176,7 +182,29 @@ def _build_parser() -> argparse.ArgumentParser:
     _add_simulate_parser(sub)
     _add_tune_parser(sub)
     _add_export_parser(sub)
+    # subcommands with their own parsers (main() hands them the rest of the command line)
+    sub.add_parser(
+        "diagnose",
+        add_help=False,
+        help="sim-to-real gap diagnosis of measured trials (grasprom diagnose -h)",
+    )
+    sub.add_parser(
+        "synth",
+        add_help=False,
+        help="synthetic 'real' trials with withheld effects (grasprom synth -h)",
+    )
     return p
+
+
+def _delegated(name: str):
+    """Entry point of a subcommand that parses its own arguments."""
+    if name == "diagnose":
+        from grasprom.diagnosis import main_diagnose
+
+        return main_diagnose
+    from grasprom.synth import main_synth
+
+    return main_synth
 
 
 def _add_simulate_parser(sub) -> None:
@@ -527,6 +555,9 @@ def main(argv: Sequence[str] | None = None, *, runner=None) -> int:
     int
         Exit code: 0 ok, 1 some case failed, 2 bad input, 130 interrupted.
     """
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] in ("diagnose", "synth"):
+        return _delegated(argv[0])(argv[1:])
     args = _build_parser().parse_args(argv)
     if args.command == "sweep":
         return _cmd_sweep(args, runner)

@@ -1,0 +1,226 @@
+"""Sim-to-real gap diagnosis (issue 7): validation, extremes, a small fixed-seed blind benchmark."""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from grasprom import diagnosis as dg
+from grasprom import kinematics as kin
+from grasprom.synth import main_synth, synth_case, write_case
+
+CHAIN = kin.ChainParams()
+
+
+def _trials(case, surrogate):
+    return [
+        dg.validate_trial(t.data, t.sidecar, f"trial{i}.csv", CHAIN, surrogate)
+        for i, t in enumerate(case.trials)
+    ]
+
+
+def _diagnose(effects, seed, surrogate, n_trials=4):
+    case = synth_case(effects, seed=seed, surrogate=surrogate, n_trials=n_trials)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return dg.diagnose(_trials(case, surrogate), surrogate, CHAIN)
+
+
+# ------------------------------------------------------------------------------ validation
+def _good_df(n=200):
+    t = np.arange(n) * 0.01
+    th = np.linspace(22, 5, n)
+    return pd.DataFrame({"time_s": t, "theta_deg": th, "force_handle_N": np.ones(n)})
+
+
+SIDE = {"thickness_mm": 1.4, "material": "mr"}
+
+
+@pytest.mark.parametrize(
+    "mutate, expect",
+    [
+        (lambda d: d.drop(columns=["force_handle_N"]), "missing column(s) 'force_handle_N'"),
+        (lambda d: d.assign(force_handle_N=d.force_handle_N.where(d.index != 7)),
+         "row 8 (line 9), column 'force_handle_N': not a finite number"),
+        (lambda d: d.assign(time_s=np.where(d.index == 12, 0.05, d.time_s)),
+         "row 13 (line 14), column 'time_s': time must increase"),
+        (lambda d: d.assign(theta_deg=np.radians(d.theta_deg)), "radians?"),
+        (lambda d: d.assign(theta_deg=np.where(d.index == 3, 25.0, d.theta_deg)),
+         "row 4 (line 5), column 'theta_deg': 25.0 deg outside"),
+        (lambda d: d.assign(force_handle_N=d.force_handle_N * 5000.0), "mN instead of N?"),
+        (lambda d: d.assign(gap_mm=np.full(len(d), 0.01)), "metres instead of mm?"),
+        (lambda d: d.iloc[:30], "too short (30 rows"),
+    ],
+)
+def test_validation_names_row_and_column(surrogate, mutate, expect):
+    with pytest.raises(dg.TrialDataError) as ei:
+        dg.validate_trial(mutate(_good_df()), SIDE, "t.csv", CHAIN, surrogate)
+    assert "t.csv" in str(ei.value)
+    assert expect in str(ei.value)
+
+
+@pytest.mark.parametrize(
+    "side, expect",
+    [
+        ({"material": "mr"}, "missing key 'thickness_mm'"),
+        ({"thickness_mm": 1.4}, "missing key 'material'"),
+        ({"thickness_mm": 1.4, "material": "xx"}, "'material' = 'xx' unknown"),
+        ({"thickness_mm": 3.0, "material": "mr"}, "outside the surrogate's range"),
+        ({"thickness_mm": 0.0014, "material": "mr"}, "metres instead of mm?"),
+    ],
+)
+def test_sidecar_validation(surrogate, side, expect):
+    with pytest.raises(dg.TrialDataError, match="side.json") as ei:
+        dg.validate_trial(_good_df(), side, "t.csv", CHAIN, surrogate, "side.json")
+    assert expect in str(ei.value)
+
+
+def test_load_trial_files(tmp_path, surrogate):
+    _good_df().to_csv(tmp_path / "a.csv", index=False)
+    with pytest.raises(dg.TrialDataError, match=r"a\.json: sidecar missing"):
+        dg.load_trial(tmp_path / "a.csv", CHAIN, surrogate)
+    (tmp_path / "a.json").write_text("{not json")
+    with pytest.raises(dg.TrialDataError, match=r"a\.json: cannot read sidecar"):
+        dg.load_trial(tmp_path / "a.csv", CHAIN, surrogate)
+    (tmp_path / "a.json").write_text(json.dumps(SIDE | {"trial_id": "A"}))
+    tr = dg.load_trial(tmp_path / "a.csv", CHAIN, surrogate)
+    assert tr.trial_id == "A" and tr.material == "mr" and tr.force_jaw_N is None
+
+
+# ------------------------------------------------------------------------------ extremes
+def test_no_contact_gives_clear_message(surrogate):
+    df = _good_df(300).assign(theta_deg=np.linspace(22, 21, 300))  # never touches the tube
+    tr = dg.validate_trial(df, SIDE, "free.csv", CHAIN, surrogate)
+    with pytest.raises(dg.DiagnosisError, match="no trial reaches the tissue"):
+        dg.diagnose([tr], surrogate, CHAIN)
+
+
+def test_too_short_cli_exit_2(tmp_path, surrogate, capsys):
+    _good_df(20).to_csv(tmp_path / "s.csv", index=False)
+    (tmp_path / "s.json").write_text(json.dumps(SIDE))
+    sur = tmp_path / "sur.json"
+    surrogate.save(sur)
+    rc = dg.main_diagnose([str(tmp_path / "s.csv"), "--out", str(tmp_path / "o"),
+                           "--surrogate", str(sur)])
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert "s.csv" in err and "too short" in err
+
+
+def test_single_trial_caps_confidence(surrogate):
+    d = _diagnose(["sensor_offset_gain"], 3, surrogate, n_trials=1)
+    assert d.report["verdict"]["confidence"] <= 0.3
+    assert any("cross-validation" in w for w in d.report["warnings"])
+
+
+# ------------------------------------------------------------------------------ blind benchmark
+# Small fixed-seed version of benchmarks/bench_diagnosis.py: one case per library effect, two
+# nulls, one pair, one out-of-library case (seeds fixed; trials synthesised with withheld truth).
+SINGLE_CASES = [
+    ("tissue_viscoelasticity", 101),
+    ("mechanism_friction", 102),
+    ("backlash", 103),
+    ("jaw_compliance", 104),
+    ("thickness_error", 105),
+    ("tissue_stiffness_scale", 106),
+    ("sensor_offset_gain", 107),
+    ("latency", 108),
+]
+
+
+def test_blind_small_benchmark(surrogate):
+    correct, shrinks = 0, []
+    for eff, seed in SINGLE_CASES:
+        d = _diagnose([eff], seed, surrogate)
+        v = d.report["verdict"]
+        correct += v["label"] == "explained" and v["effects"] == [eff]
+        shrinks.append(v["shrink"])
+        assert 0.0 <= v["shrink"] <= 1.0 and 0.0 <= v["confidence"] <= 1.0
+    assert correct >= 7, correct
+    assert np.median(shrinks) >= 0.7
+    for seed in (201, 202):
+        v = _diagnose([], seed, surrogate).report["verdict"]
+        assert v["label"] == "none"
+    v = _diagnose(["motor_cogging"], 301, surrogate).report["verdict"]
+    assert not (v["label"] == "explained" and v["confidence"] >= 0.8)
+
+
+def test_pair_and_report_schema(surrogate, tmp_path):
+    d = _diagnose(["mechanism_friction", "latency"], 401, surrogate)
+    r = d.report
+    assert set(r["verdict"]["effects"]) == {"mechanism_friction", "latency"}
+    for k in ("rms_N", "noise_N", "by_phase"):
+        assert k in r["baseline"]
+    for ph in dg.PHASES:
+        assert {"rms_N", "bias_N", "share"} <= set(r["baseline"]["by_phase"][ph])
+    assert r["where"]["phase"] in dg.PHASES and r["where"]["block"] in dg.BLOCKS
+    assert r["baseline"]["by_block"] is not None  # the synthetic trials carry force_jaw_N
+    e0 = r["effects"][0]
+    assert {"name", "params", "heldout_rms_N", "shrink", "score"} <= set(e0)
+    scores = [e["score"] for e in r["effects"]]
+    assert scores == sorted(scores, reverse=True)
+    v = r["verdict"]
+    assert {"label", "effects", "heldout_rms_before_N", "heldout_rms_after_N", "shrink",
+            "confidence"} <= set(v)
+    assert v["heldout_rms_after_N"] < v["heldout_rms_before_N"]
+    json.dumps(r)  # JSON-ready
+
+    # augmented model: saved, loaded, applied to a simulation-like table
+    paths = dg.write_outputs(d, tmp_path, plots=False)
+    m = dg.load_augmented(paths["augmented"])
+    assert set(m.effects) == {"mechanism_friction", "latency"}
+    tr = d.preps[0].trial
+    sim = pd.DataFrame({"time_s": tr.time_s, "theta_deg": tr.theta_deg,
+                        "force_handle_N": np.zeros(tr.time_s.size)})
+    base = dg.AugmentedModel({}, CHAIN).handle_force_N(
+        tr.time_s, tr.theta_deg, tr.thickness_mm, tr.material, surrogate)
+    sim["force_handle_N"] = base
+    out = dg.apply_augmented(sim, m, tr.thickness_mm, tr.material, surrogate)
+    err_before = np.sqrt(np.mean((tr.force_handle_N - sim["force_handle_N"]) ** 2))
+    err_after = np.sqrt(np.mean((tr.force_handle_N - out["force_handle_N"]) ** 2))
+    assert err_after < 0.6 * err_before
+    assert "force_handle_uncorrected_N" in out
+
+
+def test_load_augmented_rejects_bad_file(tmp_path):
+    p = tmp_path / "a.json"
+    p.write_text(json.dumps({"format": "x", "format_version": 1}))
+    with pytest.raises(ValueError, match="a.json"):
+        dg.load_augmented(p)
+    p.write_text(json.dumps({"format": dg.FORMAT_AUGMENTED, "format_version": 1,
+                             "effects": [{"name": "latency", "params": {"d": 1}}]}))
+    with pytest.raises(ValueError, match="needs parameters"):
+        dg.load_augmented(p)
+
+
+def test_cli_synth_then_diagnose(tmp_path, surrogate, capsys):
+    sur = tmp_path / "sur.json"
+    surrogate.save(sur)
+    rc = main_synth(["--out", str(tmp_path / "d"), "--effect", "tissue_stiffness_scale",
+                     "--seed", "5", "--trials", "3", "--surrogate", str(sur)])
+    assert rc == 0
+    truth = json.loads((tmp_path / "d" / "truth.json").read_text())
+    assert list(truth["effects"]) == ["tissue_stiffness_scale"]
+    side = json.loads((tmp_path / "d" / "trial_01.json").read_text())
+    assert "tissue_stiffness_scale" not in json.dumps(side)  # withheld
+    csvs = sorted(str(p) for p in (tmp_path / "d").glob("trial_*.csv"))
+    rc = dg.main_diagnose(csvs + ["--out", str(tmp_path / "o"), "--surrogate", str(sur)])
+    assert rc == 0
+    out = capsys.readouterr().out
+    assert "VERDICT: explained (tissue_stiffness_scale)" in out
+    rep = json.loads((tmp_path / "o" / "report.json").read_text())
+    assert rep["verdict"]["effects"] == ["tissue_stiffness_scale"]
+    assert (tmp_path / "o" / "residual_by_phase.png").is_file()
+    assert (tmp_path / "o" / "trial_01.png").is_file()
+    assert main_synth(["--out", str(tmp_path / "e"), "--effect", "nope"]) == 2
+
+
+def test_write_case_roundtrip(tmp_path, surrogate):
+    case = synth_case([], seed=9, surrogate=surrogate, n_trials=2, jaw_load_cell=False)
+    paths = write_case(case, tmp_path)
+    tr = dg.load_trial(paths[0], CHAIN, surrogate)
+    assert tr.force_jaw_N is None and tr.time_s.size > 1000
