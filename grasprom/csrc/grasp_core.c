@@ -26,8 +26,10 @@ static int bisect(const double *x, int n, double v) {
     return lo - 1;
 }
 
-/* force (N) and dF/dgap (N/mm) of one curve; returns 1 below the first node (extrapolated) */
-static int curve_eval(const gc_curve_t *c, double x, double *f, double *dfdg) {
+/* force (N) and dF/dgap (N/mm) of one curve; returns 1 below the first node (extrapolated).
+ * *hint: last interval used (or -1); checked first, so slowly moving gaps skip the bisection
+ * (the interval found is the same either way). */
+static int curve_eval_hint(const gc_curve_t *c, double x, double *f, double *dfdg, int *hint) {
     double x0 = c->x[0], xn = c->x[c->n - 1];
     int last = c->n - 2;
     int k;
@@ -39,14 +41,23 @@ static int curve_eval(const gc_curve_t *c, double x, double *f, double *dfdg) {
         *dfdg = c->c1[0];
         return 1;
     }
-    k = bisect(c->x, c->n, x);
-    if (k > last) k = last;
+    k = *hint;
+    if (!(k >= 0 && k <= last && c->x[k] <= x && x < c->x[k + 1])) {
+        k = bisect(c->x, c->n, x);
+        if (k > last) k = last;
+        *hint = k;
+    }
     h = x - c->x[k];
     a1 = c->c1[k]; a2 = c->c2[k]; a3 = c->c3[k];
     v = ((a3 * h + a2) * h + a1) * h + c->c0[k];
     *f = v > 0.0 ? v : 0.0;
     *dfdg = (3.0 * a3 * h + 2.0 * a2) * h + a1;
     return 0;
+}
+
+static int curve_eval(const gc_curve_t *c, double x, double *f, double *dfdg) {
+    int hint = -1;
+    return curve_eval_hint(c, x, f, dfdg, &hint);
 }
 
 int gc_surrogate(const gc_material_t *m, double gap, double t, double *force, double *stiffness) {
@@ -72,6 +83,56 @@ int gc_surrogate(const gc_material_t *m, double gap, double t, double *force, do
     } else {
         ba = curve_eval(&m->curves[i], gap, &fa, &da);
         bb = curve_eval(&m->curves[i + 1], gap, &fb, &db);
+        dfdg = v * da + w * db;
+    }
+    *force = v * fa + w * fb;
+    *stiffness = -dfdg;
+    return (ba && v > 0.0) || (bb && w > 0.0);
+}
+
+/* thickness blend of the step's material and thickness, computed once (same arithmetic as
+ * gc_surrogate, so the results are identical) */
+static void blend_prepare(gc_state_t *s, const gc_material_t *m, double t) {
+    int n = m->n_curves, i;
+    double w;
+    s->b_mat = m;
+    s->b_t = t;
+    s->hint[0] = s->hint[1] = -1;
+    if (n == 1) { s->b_i = 0; s->b_w = 0.0; s->b_v = 1.0; return; }
+    i = bisect(m->thickness, n, t);
+    if (i < 0) i = 0; else if (i > n - 2) i = n - 2;
+    w = (t - m->thickness[i]) * m->inv_dt[i];
+    if (w < 0.0) w = 0.0; else if (w > 1.0) w = 1.0;
+    s->b_i = i;
+    s->b_w = w;
+    s->b_v = 1.0 - w;
+    if (m->aligned) {
+        double D = m->diameter, gca = m->contact_gap[i], gcb = m->contact_gap[i + 1];
+        double dgc = gca - gcb, gct = gca - w * dgc, idn = 1.0 / (D - gct);
+        s->b_dgc = dgc;
+        s->b_idn = idn;
+        s->b_sa = (D - gca) * idn;
+        s->b_sb = (D - gcb) * idn;
+    }
+}
+
+static int surrogate_fast(gc_state_t *s, double gap, double *force, double *stiffness) {
+    const gc_material_t *m = s->b_mat;
+    int i = s->b_i, ba, bb;
+    double w = s->b_w, v = s->b_v, fa, fb, da, db, dfdg;
+    if (m->n_curves == 1) {
+        ba = curve_eval_hint(&m->curves[0], gap, force, &dfdg, &s->hint[0]);
+        *stiffness = -dfdg;
+        return ba;
+    }
+    if (m->aligned) {
+        double r = (m->diameter - gap) * s->b_idn * s->b_dgc;
+        ba = curve_eval_hint(&m->curves[i], gap + w * r, &fa, &da, &s->hint[0]);
+        bb = curve_eval_hint(&m->curves[i + 1], gap - v * r, &fb, &db, &s->hint[1]);
+        dfdg = v * (da * s->b_sa) + w * (db * s->b_sb);
+    } else {
+        ba = curve_eval_hint(&m->curves[i], gap, &fa, &da, &s->hint[0]);
+        bb = curve_eval_hint(&m->curves[i + 1], gap, &fb, &db, &s->hint[1]);
         dfdg = v * da + w * db;
     }
     *force = v * fa + w * fb;
@@ -152,6 +213,8 @@ void gc_init(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c) {
     s->q = p->encoder_counts > 0.0 ? 2.0 * M_PI * p->pulley_radius / (p->encoder_counts * c->L3)
                                    : 0.0;
     s->area = p->jaw_length * (0.5 * M_PI * (p->diameter - p->thickness));
+    s->b_mat = 0;
+    s->b_t = NAN;
 }
 
 /* ---------------------------------------------------------------- the step */
@@ -183,7 +246,8 @@ static void step_impl(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
     th_deg = th * RAD_TO_DEG;
 
     gc_chain_state(c, th_deg, &g, &g1, &u, &du);
-    gc_surrogate(m, g, p->thickness, &f_g, &k_g);
+    if (s->b_mat != m || !(s->b_t == p->thickness)) blend_prepare(s, m, p->thickness);
+    surrogate_fast(s, g, &f_g, &k_g);
     contact = f_g > 0.0;
     kc = p->coupling_k;
     if (contact) {
@@ -194,14 +258,14 @@ static void step_impl(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
         if (gp < g) gp = g;
         if (gp > hi) gp = hi;
         for (i = 0; i < n_iter; ++i) {
-            gc_surrogate(m, gp, p->thickness, &f_p, &k_p);
+            surrogate_fast(s, gp, &f_p, &k_p);
             r = kc * (gp - g) - f_p;
             gp = gp - r / (kc + k_p);
             if (gp < g) gp = g;
             if (gp > hi) gp = hi;
         }
         fg = kc * (gp - g);
-        gc_surrogate(m, gp, p->thickness, &f_p, &k_p);
+        surrogate_fast(s, gp, &f_p, &k_p);
         active = k_p > kc;
     } else {
         gp = g;

@@ -77,6 +77,11 @@ typedef struct {
     double a;          /* velocity filter pole */
     double q;          /* encoder quantum, rad */
     double area;       /* contact area for the mean pressure, mm^2 */
+    /* thickness blend cached by the step (recomputed if the material or thickness changes) */
+    const gc_material_t *b_mat;
+    double b_t, b_w, b_v, b_dgc, b_idn, b_sa, b_sb;
+    int b_i;
+    int hint[2];       /* last Hermite interval of the two blended curves */
 } gc_state_t;
 
 typedef struct {
