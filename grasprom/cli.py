@@ -2,6 +2,9 @@
 
 Subcommands
 -----------
+build
+    The main job: FE sweep -> surrogate -> tuning -> FMU (FMI 2 and 3) -> Arduino package ->
+    FMU co-simulation -> report.html, into one output folder.
 sweep
     Run an FE clamping sweep over wall thickness x material (resumable).
 report
@@ -40,12 +43,16 @@ def _build_parser() -> argparse.ArgumentParser:
 
     d = spec_defaults()
     p = argparse.ArgumentParser(
-        prog="grasprom", description="FE clamping sweeps of a soft tube between rigid jaws."
+        prog="grasprom",
+        description="From FE clamping sweeps of the colon wall to haptic grasp controllers: "
+        "surrogate, passivity tuning, FMU and Arduino exports, sim-to-real gap diagnosis. "
+        "Start with 'grasprom build'.",
     )
     p.add_argument("--version", action="version", version=f"grasprom {__version__}")
     sub = p.add_subparsers(
-        dest="command", required=True, metavar="{sweep,report,surrogate,simulate,...}"
+        dest="command", required=True, metavar="{build,sweep,report,surrogate,simulate,...}"
     )
+    _add_build_parser(sub)
 
     s = sub.add_parser(
         "sweep",
@@ -540,6 +547,133 @@ def _cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
+# ---------------------------------------------------------------- build (the main job)
+def _add_build_parser(sub) -> None:
+    from grasprom.pipeline import DEFAULT_HOLDOUT_DIR, STAGES
+
+    b = sub.add_parser(
+        "build",
+        help="the main job: FE data -> surrogate, tuned controller, FMU, Arduino code, report",
+        description="Run the whole pipeline on an FE sweep and write one output folder: "
+        "surrogate.json, controller.json, GraspController.fmu (FMI 2.0), "
+        "GraspController_fmi3.fmu (FMI 3.0), arduino/, cosim.csv, figures/, report.html "
+        f"(self-contained), build.json (provenance). Stages: {', '.join(STAGES)}. A failed "
+        "stage is named on stderr (exit 1); what earlier stages wrote is kept.",
+    )
+    b.add_argument(
+        "--fe",
+        default=DEFAULT_SWEEP_DIR,
+        metavar="DIR",
+        help=f"FE sweep (default {DEFAULT_SWEEP_DIR}, the shipped sweep)",
+    )
+    b.add_argument(
+        "--holdout",
+        default=DEFAULT_HOLDOUT_DIR,
+        metavar="DIR",
+        help=f"held-out FE cases for the surrogate error, used if present "
+        f"(default {DEFAULT_HOLDOUT_DIR})",
+    )
+    b.add_argument(
+        "--thickness",
+        type=float,
+        default=1.4,
+        metavar="MM",
+        help="wall thickness of the exported operating point in mm (default 1.4)",
+    )
+    b.add_argument("--material", default="mr", help="mr, nh or le (default mr)")
+    b.add_argument("--out", default="build", metavar="DIR", help="output folder (default build)")
+    b.add_argument(
+        "--fast",
+        action="store_true",
+        help="quick run (tests): coarse tuning grid, no simavr cycle count, short co-simulation",
+    )
+    b.add_argument("--quiet", action="store_true", help="no per-stage progress on stderr")
+
+
+def _cmd_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
+    import math
+
+    from grasprom.materials import MATERIAL_NAMES
+    from grasprom.pipeline import BuildOptions, StageError, run_build, summary
+
+    if args.material not in MATERIAL_NAMES:
+        return _error("build", f"--material {args.material!r} unknown; valid: "
+                      f"{', '.join(MATERIAL_NAMES)}")  # fmt: skip
+    if not (math.isfinite(args.thickness) and args.thickness > 0):
+        return _error("build", f"--thickness must be > 0 mm, got {args.thickness}")
+    opts = BuildOptions(
+        fe_dir=resolve_sweep_dir(args.fe),
+        holdout_dir=args.holdout,
+        thickness_mm=args.thickness,
+        material=args.material,
+        out_dir=args.out,
+        fast=args.fast,
+        command_line=["grasprom", *argv],
+    )
+    try:
+        res = run_build(opts, progress=None if args.quiet else sys.stderr)
+    except StageError as exc:
+        print(f"grasprom build: error: {exc}", file=sys.stderr)
+        print(f"grasprom build: outputs of the earlier stages kept in {args.out}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("grasprom build: interrupted; outputs of finished stages kept", file=sys.stderr)
+        return 130
+    print(summary(res))
+    return 0
+
+
+def cli_reference(width: int = 100) -> str:
+    """The CLI reference block of README.md, generated from the parsers.
+
+    ``grasprom --help`` and ``grasprom build --help`` in full, then the usage line of every
+    other (sub)command; formatted at ``width`` columns.  ``tests/test_readme.py`` compares it
+    with README (regenerate: ``python -c "from grasprom.cli import cli_reference as c;
+    print(c())"``).
+
+    Parameters
+    ----------
+    width : int
+        Terminal width for argparse, columns.
+
+    Returns
+    -------
+    str
+    """
+    import contextlib
+    import io
+    import os
+
+    old = os.environ.get("COLUMNS")
+    os.environ["COLUMNS"] = str(width)
+    try:
+        parser = _build_parser()
+        subs = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+        parts = ["$ grasprom --help", parser.format_help().rstrip(), "",
+                 "$ grasprom build --help", subs.choices["build"].format_help().rstrip(), "",
+                 "$ grasprom <command> --help   # usage lines; run it for the details"]  # fmt: skip
+        for name, sp in subs.choices.items():
+            if name == "build":
+                continue
+            nested = [a for a in sp._actions if isinstance(a, argparse._SubParsersAction)]
+            if nested:
+                for sp2 in nested[0].choices.values():
+                    parts.append(sp2.format_usage().rstrip())
+            elif name in ("diagnose", "synth"):
+                buf = io.StringIO()
+                with contextlib.redirect_stdout(buf), contextlib.suppress(SystemExit):
+                    _delegated(name)(["--help"])
+                parts.append(buf.getvalue().split("\n\n")[0].rstrip())
+            else:
+                parts.append(sp.format_usage().rstrip())
+        return "\n".join(parts) + "\n"
+    finally:
+        if old is None:
+            del os.environ["COLUMNS"]
+        else:
+            os.environ["COLUMNS"] = old
+
+
 def main(argv: Sequence[str] | None = None, *, runner=None) -> int:
     """Entry point of the ``grasprom`` command.
 
@@ -559,6 +693,8 @@ def main(argv: Sequence[str] | None = None, *, runner=None) -> int:
     if argv and argv[0] in ("diagnose", "synth"):
         return _delegated(argv[0])(argv[1:])
     args = _build_parser().parse_args(argv)
+    if args.command == "build":
+        return _cmd_build(args, argv)
     if args.command == "sweep":
         return _cmd_sweep(args, runner)
     if args.command == "surrogate":

@@ -1,0 +1,206 @@
+"""The main job ``grasprom build`` end to end, its failure handling, and the examples.
+
+The end-to-end run (``--fast``, into a temp dir, from a directory outside the source tree)
+checks every artefact: the surrogate and controller files load, both FMUs validate (fmpy) and
+simulate, the Arduino package compiles with avr-gcc (required when ``CI=true``, skipped
+otherwise), and the report exists, embeds and names every figure.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+CI = os.environ.get("CI") == "true"
+FIGURES = ("fe_sweep.png", "surrogate.png", "transmission.png", "stiffness_vs_theta.png",
+           "zwidth.png", "bode_impedance.png", "cosim.png")  # fmt: skip
+
+
+def _env() -> dict[str, str]:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    return env
+
+
+def _build(out: Path, *extra: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "grasprom", "build", "--out", str(out), *extra],
+        capture_output=True, text=True, env=_env(), cwd=cwd or out.parent, timeout=300,
+    )  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
+    """One ``grasprom build --fast`` run, from a directory that is not the checkout."""
+    base = tmp_path_factory.mktemp("build")
+    out = base / "out"
+    res = _build(out, "--fast", cwd=base)
+    assert res.returncode == 0, res.stderr
+    return out, res
+
+
+def test_progress_names_every_stage(built):
+    from grasprom.pipeline import STAGES
+
+    _, res = built
+    for i, name in enumerate(STAGES, 1):
+        assert f"[{i}/{len(STAGES)}] {name} done in" in res.stderr
+    assert "grasprom build:" in res.stdout and "report.html" in res.stdout
+
+
+def test_surrogate_and_controller_load(built):
+    from grasprom.controller import ImpedanceController, load_params
+    from grasprom.surrogate import Surrogate
+
+    out, _ = built
+    s = Surrogate.load(out / "surrogate.json", fe_dir=ROOT / "fe_data" / "default")
+    assert set(s.materials) == {"mr", "nh", "le"}
+    assert "holdout" in s.errors and "loo" in s.errors
+    p = load_params(out / "controller.json")
+    assert (p.material, p.thickness_mm) == ("mr", 1.4)
+    assert 0 < p.coupling_stiffness_N_per_mm < 10
+    tuning = json.loads((out / "controller.json").read_text())["tuning"]
+    assert tuning["passive_everywhere"] and tuning["passivity_margin"] >= 1.25 - 1e-9
+    ImpedanceController(p, s).step(0.1)
+
+
+@pytest.mark.parametrize("name", ["GraspController.fmu", "GraspController_fmi3.fmu"])
+def test_fmu_validates_and_simulates(built, name):
+    from fmpy import read_model_description, simulate_fmu
+    from fmpy.validation import validate_fmu
+
+    from grasprom.controller import load_params, simulate
+    from grasprom.surrogate import Surrogate
+
+    out, _ = built
+    fmu = out / name
+    assert validate_fmu(str(fmu)) == []
+    md = read_model_description(str(fmu))
+    assert md.fmiVersion.startswith("3" if "fmi3" in name else "2")
+    t = np.arange(0.0, 0.5, 1e-3)
+    theta_deg = 22.0 - 40.0 * t  # closing to 2 deg
+    sig = np.array(list(zip(t, np.radians(theta_deg))), dtype=[("time", float), ("theta", float)])
+    r = simulate_fmu(str(fmu), stop_time=0.499, step_size=1e-3, input=sig,
+                     output=["torque", "force_jaw"])  # fmt: skip
+    assert np.all(np.isfinite(r["torque"])) and r["force_jaw"][-1] > 0
+    # same as the Python reference on the same trajectory (FMU outputs lag one step)
+    import pandas as pd
+
+    ref = simulate(pd.DataFrame({"time_s": t, "theta_deg": theta_deg}),
+                   load_params(out / "controller.json"), Surrogate.load(out / "surrogate.json"))
+    np.testing.assert_allclose(r["torque"][-1], ref["torque_Nm"].to_numpy()[-2], rtol=1e-6)
+
+
+def test_arduino_package_compiles(built, tmp_path):
+    out, _ = built
+    sk = out / "arduino" / "grasprom_controller"
+    for f in ("grasprom_controller.ino", "grasp_fixed.c", "grasp_fixed.h", "grasp_fixed_config.h",
+              "grasp_fixed_tables.h", "Makefile"):  # fmt: skip
+        assert (sk / f).is_file(), f
+    if shutil.which("avr-gcc") is None:
+        (pytest.fail if CI else pytest.skip)("avr-gcc missing: apt-get install gcc-avr avr-libc")
+    main = tmp_path / "main.c"
+    main.write_text(
+        '#include "grasp_fixed.h"\nstatic gf_state_t s;\nvolatile int16_t in;\n'
+        "volatile int32_t o32;\nint main(void) {\n    gf_output_t o;\n    gf_init(&s, 0, 1400);\n"
+        "    for (;;) { gf_step(&s, in, &o); o32 = o.torque_uNm; }\n}\n"
+    )
+    res = subprocess.run(
+        ["avr-gcc", "-mmcu=atmega328p", "-Os", "-std=gnu99", "-Wall", "-Wextra", "-Werror",
+         "-DF_CPU=16000000UL", f"-I{sk}", "-o", str(tmp_path / "fw.elf"), str(sk / "grasp_fixed.c"),
+         str(main)],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    budget = json.loads((out / "build.json").read_text())["results"]["arduino"]
+    assert budget["flash_B"] is not None and budget["flash_B"] <= 8192
+    assert budget["ram_B"] <= 512
+
+
+def test_report_names_and_embeds_figures(built):
+    out, _ = built
+    html = (out / "report.html").read_text()
+    for f in FIGURES:
+        assert (out / "figures" / f).is_file(), f
+        assert f in html, f
+    assert html.count("data:image/png;base64,") == len(FIGURES)
+    for section in ("Held-out error", "passivity margin", "Z-width", "Co-simulated grasp",
+                    "Arduino budget", "flash", "cycles", "Provenance", "command_line",
+                    "fe_hash", "git_revision"):  # fmt: skip
+        assert section in html, section
+    meta = json.loads((out / "build.json").read_text())
+    prov = meta["provenance"]
+    assert prov["command_line"][:2] == ["grasprom", "build"] and "--fast" in prov["command_line"]
+    assert prov["failed_stage"] is None
+    assert prov["versions"]["grasprom"] and prov["fe_hash"]
+    assert set(prov["artefact_sha256"]) >= {"surrogate.json", "controller.json",
+                                             "GraspController.fmu", "GraspController_fmi3.fmu"}
+    cs = meta["results"]["cosim"]
+    assert cs["max_torque_diff_vs_python_Nm"] < 1e-9  # FMU = Python reference
+    assert cs["max_force_jaw_N"] > 0.1 and cs["min_theta_deg"] < 10  # it did grasp
+    assert meta["results"]["surrogate"]["haptic_error"]["holdout"]["force_max_pct"] < 3
+
+
+def test_bad_fe_dir_names_the_stage(tmp_path):
+    out = tmp_path / "out"
+    res = _build(out, "--fe", str(tmp_path / "nope"), "--fast", "--quiet")
+    assert res.returncode == 1
+    assert "stage 'surrogate' failed" in res.stderr and "nope" in res.stderr
+    assert not (out / "surrogate.json").exists()
+    assert "stage 'surrogate'" in (out / "report.html").read_text()
+
+
+def test_failed_stage_keeps_earlier_outputs(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "arduino").write_text("a file where the arduino/ folder should go\n")
+    res = _build(out, "--fast")
+    assert res.returncode == 1
+    assert "stage 'arduino' failed" in res.stderr
+    for name in ("surrogate.json", "controller.json", "GraspController.fmu",
+                 "GraspController_fmi3.fmu"):  # fmt: skip
+        assert (out / name).is_file(), name
+    assert "[3/6] fmu done in" in res.stderr and "cosim" not in res.stderr
+    meta = json.loads((out / "build.json").read_text())
+    assert meta["provenance"]["failed_stage"] == "arduino"
+    assert "Build failed at stage 'arduino'" in (out / "report.html").read_text()
+
+
+def test_bad_material_is_bad_input(tmp_path):
+    res = _build(tmp_path / "out", "--material", "steel")
+    assert res.returncode == 2 and "steel" in res.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_thickness_out_of_range_names_surrogate_stage(tmp_path):
+    res = _build(tmp_path / "out", "--thickness", "5", "--quiet")
+    assert res.returncode == 1
+    assert "stage 'surrogate' failed" in res.stderr and "5 mm" in res.stderr
+
+
+# ----------------------------------------------------------------------------------- examples
+# examples/kinematics_fg_fi.py is run by tests/test_kinematics.py
+@pytest.mark.parametrize(
+    ("script", "args", "expect"),
+    [
+        ("fmu_cosim.py", ["--fast"], "fmu_cosim.png"),
+        ("tune_controller.py", [], "controller.json"),
+        ("diagnose_gap.py", [], "diagnosis"),
+        ("arduino_export.py", ["--fast"], "grasprom_controller"),
+    ],
+)
+def test_example_runs(tmp_path, script, args, expect):
+    res = subprocess.run(
+        [sys.executable, str(ROOT / "examples" / script), "--out", str(tmp_path / "ex"), *args],
+        capture_output=True, text=True, env=_env(), cwd=tmp_path, timeout=180,
+    )  # fmt: skip
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert (tmp_path / "ex" / expect).exists(), list((tmp_path / "ex").iterdir())

@@ -1,0 +1,128 @@
+"""README.md cannot drift from reality.
+
+* Its CLI reference block equals the help generated from the live parsers
+  (:func:`grasprom.cli.cli_reference`), whitespace-normalised.
+* Its first two commands, parsed from the file, run in a clean virtual environment
+  (``python -m venv``, no system site-packages; pip may reuse the machine's cache) inside a
+  temporary copy of the checkout, so the repository stays clean:
+
+  1. the main job, ``pip install -e . && grasprom build --out build``, runs as written and
+     leaves the report, the FMUs and the Arduino package in the copy's ``build/``;
+  2. the test command, ``pip install -e ".[dev]" && python -m pytest -q``: the install runs as
+     written, but pytest is *not* run in full (that would recurse into this test and double the
+     suite's time): ``python -m pytest --version`` and ``python -m pytest -q --collect-only``
+     must succeed in that environment instead.
+
+The venv test is marked ``slow`` (about 1-2 minutes, bounded by per-step timeouts); CI runs it.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+MAIN_JOB = "pip install -e . && grasprom build --out build"
+TEST_CMD = 'pip install -e ".[dev]" && python -m pytest -q'
+
+
+def readme_commands() -> list[str]:
+    """The commands of README's first two ``bash`` code blocks (one line each)."""
+    blocks = re.findall(r"```bash\n(.*?)```", README.read_text(), flags=re.S)
+    assert len(blocks) >= 2, "README needs the main-job and test command blocks"
+    cmds = [b.strip() for b in blocks[:2]]
+    for c in cmds:
+        assert "\n" not in c, f"README's first commands must be one line each: {c!r}"
+    return cmds
+
+
+def test_readme_first_commands_are_the_documented_ones():
+    main, tests = readme_commands()
+    assert main == MAIN_JOB
+    assert tests == TEST_CMD  # .ci/run calls exactly this
+    assert "python -m pip install -e \".[dev]\"" in (ROOT / ".ci" / "run").read_text()
+
+
+def _norm(text: str) -> str:
+    return " ".join(text.split())
+
+
+def test_cli_reference_matches_live_help():
+    from grasprom.cli import cli_reference
+
+    m = re.search(r"<!-- cli-reference:start -->\n```text\n(.*?)```\n<!-- cli-reference:end -->",
+                  README.read_text(), flags=re.S)  # fmt: skip
+    assert m, "README lacks the generated CLI reference block"
+    assert _norm(m.group(1)) == _norm(cli_reference()), (
+        "README's CLI reference is stale; regenerate with "
+        "python -c \"from grasprom.cli import cli_reference as c; print(c())\""
+    )
+
+
+def _copy_checkout(dest: Path) -> None:
+    """Copy the tracked and untracked-but-not-ignored files of the checkout to ``dest``."""
+    files = None
+    if shutil.which("git"):
+        git = ["git", "-C", str(ROOT), "ls-files", "-z", "--cached", "--others",
+               "--exclude-standard"]  # fmt: skip
+        res = subprocess.run(git, capture_output=True, timeout=60)
+        if res.returncode == 0:
+            files = [f for f in res.stdout.decode().split("\0") if f]
+    if files is None:
+        shutil.copytree(ROOT, dest, ignore=shutil.ignore_patterns(
+            ".git", "build", "*.egg-info", "__pycache__", ".pytest_cache", "report"))  # fmt: skip
+        return
+    for f in files:
+        src = ROOT / f
+        if src.is_file():
+            (dest / f).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, dest / f)
+
+
+def _run(cmd: str, cwd: Path, env: dict[str, str], timeout: float) -> subprocess.CompletedProcess:
+    res = subprocess.run(["bash", "-c", cmd], cwd=cwd, env=env, capture_output=True, text=True,
+                         timeout=timeout)  # fmt: skip
+    assert res.returncode == 0, f"{cmd!r} failed ({res.returncode}):\n{res.stdout[-3000:]}\n" \
+                                f"{res.stderr[-3000:]}"  # fmt: skip
+    return res
+
+
+@pytest.mark.slow
+def test_readme_commands_in_fresh_venv(tmp_path):
+    main_cmd, test_cmd = readme_commands()
+    repo = tmp_path / "repo"
+    repo.mkdir()
+    _copy_checkout(repo)
+    venv = tmp_path / "venv"
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=120)
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("PYTHONPATH", "PYTHONHOME", "PYTHONSTARTUP")}  # fmt: skip
+    env["VIRTUAL_ENV"] = str(venv)
+    env["PATH"] = os.pathsep.join([str(venv / "bin"), env.get("PATH", "")])
+    env["PIP_DISABLE_PIP_VERSION_CHECK"] = "1"
+
+    # 1. the main job, exactly as written
+    res = _run(main_cmd, repo, env, timeout=900)
+    out = repo / "build"
+    for name in ("report.html", "surrogate.json", "controller.json", "GraspController.fmu",
+                 "GraspController_fmi3.fmu", "build.json"):  # fmt: skip
+        assert (out / name).is_file(), (name, res.stderr[-2000:])
+    assert (out / "arduino" / "grasprom_controller" / "grasprom_controller.ino").is_file()
+    grasprom = shutil.which("grasprom", path=str(venv / "bin"))
+    assert grasprom and Path(grasprom).parent == venv / "bin"  # the venv's, not the machine's
+
+    # 2. the test command: install as written; pytest only reports its version and collects
+    install, pytest_part = (p.strip() for p in test_cmd.split("&&"))
+    assert pytest_part == "python -m pytest -q"
+    _run(install, repo, env, timeout=900)
+    _run("python -m pytest --version", repo, env, timeout=120)
+    res = _run("python -m pytest -q --collect-only -p no:cacheprovider", repo, env, timeout=300)
+    m = re.search(r"(\d+) tests? collected", res.stdout)
+    assert m and int(m.group(1)) > 100, res.stdout[-2000:]
