@@ -225,7 +225,13 @@ def _add_simulate_parser(sub) -> None:
     m.add_argument("--thickness", type=float, default=None, metavar="MM", help="wall thickness")
     m.add_argument("--material", default=None, help="mr, nh or le")
     m.add_argument("--controller", default=None, metavar="JSON", help="controller parameters")
-    src = m.add_mutually_exclusive_group()
+    _add_surrogate_source(m)
+    m.add_argument("--out", required=True, metavar="CSV", help="simulation output CSV")
+
+
+def _add_surrogate_source(parser) -> None:
+    """``--surrogate FILE | --fe DIR``: where a command gets its tissue surrogate."""
+    src = parser.add_mutually_exclusive_group()
     src.add_argument("--surrogate", default=None, metavar="JSON", help="surrogate file")
     src.add_argument(
         "--fe",
@@ -233,7 +239,6 @@ def _add_simulate_parser(sub) -> None:
         metavar="DIR",
         help=f"FE sweep to build the surrogate from (default {DEFAULT_SWEEP_DIR})",
     )
-    m.add_argument("--out", required=True, metavar="CSV", help="simulation output CSV")
 
 
 def load_surrogate(surrogate: str | None, fe: str | None):
@@ -411,14 +416,7 @@ def _add_tune_parser(sub) -> None:
         "material (Colgate, Abbott-Okamura, Z-width, python-control poles/margins, "
         "simulation check). Writes controller.json, tuning.json, tuning.txt and plots.",
     )
-    src = t.add_mutually_exclusive_group()
-    src.add_argument("--surrogate", default=None, metavar="JSON", help="surrogate file")
-    src.add_argument(
-        "--fe",
-        default=None,
-        metavar="DIR",
-        help=f"FE sweep to build the surrogate from (default {DEFAULT_SWEEP_DIR})",
-    )
+    _add_surrogate_source(t)
     t.add_argument(
         "--thickness",
         default=None,
@@ -488,13 +486,7 @@ def _add_export_parser(sub) -> None:
     )
     f.add_argument("--out", required=True, metavar="FMU", help="FMU file to write")
     f.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (default 2)")
-    f.add_argument("--surrogate", default=None, metavar="JSON", help="surrogate file")
-    f.add_argument(
-        "--fe",
-        default=None,
-        metavar="DIR",
-        help=f"FE sweep to build the surrogate from (default {DEFAULT_SWEEP_DIR})",
-    )
+    _add_surrogate_source(f)
     f.add_argument("--params", default=None, metavar="JSON", help="controller parameters")
     a = esub.add_parser(
         "arduino",
@@ -504,13 +496,7 @@ def _add_export_parser(sub) -> None:
         "Makefile; prints the flash/RAM/cycle/error budget (measured with avr-gcc + simavr).",
     )
     a.add_argument("--out", required=True, metavar="DIR", help="output directory")
-    a.add_argument("--surrogate", default=None, metavar="JSON", help="surrogate file")
-    a.add_argument(
-        "--fe",
-        default=None,
-        metavar="DIR",
-        help=f"FE sweep to build the surrogate from (default {DEFAULT_SWEEP_DIR})",
-    )
+    _add_surrogate_source(a)
     a.add_argument("--params", default=None, metavar="JSON", help="controller parameters")
     a.add_argument(
         "--tol",
