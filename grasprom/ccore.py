@@ -228,6 +228,9 @@ class CCore:
         self._lib.gcs_init.restype = ctypes.c_int
         self._lib.gcs_step.argtypes = [ctypes.c_double, ctypes.POINTER(_Output)]
         self._lib.gcs_step.restype = None
+        dbl = ctypes.c_double
+        self._lib.gcs_step_ext.argtypes = [dbl, dbl, ctypes.POINTER(_Output)]
+        self._lib.gcs_step_ext.restype = None
         self._out = _Output()
         self.reset()
 
@@ -244,9 +247,12 @@ class CCore:
             raise ValueError(f"C core rejected the parameters (code {rc})")
         return rc
 
-    def step(self, theta_rad: float) -> StepOutput:
-        """One step; outputs as :class:`grasprom.controller.StepOutput`."""
-        self._lib.gcs_step(float(theta_rad), ctypes.byref(self._out))
+    def step(self, theta_rad: float, theta_dot: float | None = None) -> StepOutput:
+        """One step (``gc_step``, or ``gc_step_ext`` with a finite measured velocity)."""
+        if theta_dot is not None and math.isfinite(theta_dot):
+            self._lib.gcs_step_ext(float(theta_rad), float(theta_dot), ctypes.byref(self._out))
+        else:
+            self._lib.gcs_step(float(theta_rad), ctypes.byref(self._out))
         o = self._out
         return StepOutput(
             torque_Nm=o.torque,

@@ -237,8 +237,18 @@ class ImpedanceController:
         q = self._q
         return q * math.floor(theta_rad / q + 0.5) if q > 0.0 else theta_rad
 
-    def step(self, theta_rad: float) -> StepOutput:
-        """Advance one sample with the measured handle angle (rad); returns the outputs."""
+    def step(self, theta_rad: float, theta_dot: float | None = None) -> StepOutput:
+        """Advance one sample; returns the outputs.
+
+        Parameters
+        ----------
+        theta_rad : float
+            Measured handle angle (rad).
+        theta_dot : float, optional
+            Measured handle velocity (rad/s, e.g. from a tachometer or the host simulation).
+            When given and finite, the damping acts on it instead of the filtered backward
+            difference (the filter still runs); ``velocity_rad_per_s`` then reports it.
+        """
         p = self.params
         th = float(theta_rad)
         clamped = False
@@ -280,7 +290,10 @@ class ImpedanceController:
         fi = kin.handle_force_N(fg, th_deg, self._chain)  # includes the spring
         if not p.render_spring:
             fi -= fi_spring
-        fi -= p.damping_Nms_per_rad * self._v / (self._L3 * 1e-3)
+        v_damp = self._v
+        if theta_dot is not None and math.isfinite(theta_dot):
+            v_damp = float(theta_dot)
+        fi -= p.damping_Nms_per_rad * v_damp / (self._L3 * 1e-3)
         r_m = p.pulley_radius_mm * 1e-3
         torque = fi * r_m
         lim = p.torque_limit_Nm
@@ -297,7 +310,7 @@ class ImpedanceController:
             gap_mm=g,
             proxy_gap_mm=gp,
             theta_deg=th_deg,
-            velocity_rad_per_s=self._v,
+            velocity_rad_per_s=v_damp,
             contact=contact,
             tissue_warning=warn,
             coupling_active=coupling_active,

@@ -21,3 +21,7 @@ int gcs_init(const gc_params_t *p) {
 void gcs_step(double theta, gc_output_t *out) {
     gc_step(&S, &P, &GC_CHAIN, &GC_MATERIALS[P.material], theta, out);
 }
+
+void gcs_step_ext(double theta, double theta_dot, gc_output_t *out) {
+    gc_step_ext(&S, &P, &GC_CHAIN, &GC_MATERIALS[P.material], theta, theta_dot, out);
+}
