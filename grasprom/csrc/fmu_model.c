@@ -139,13 +139,7 @@ int gf_set_start_time(gf_instance_t *inst, const char *fn, double start_time) {
 }
 
 int gf_enter_initialization(gf_instance_t *inst, const char *fn, double start_time) {
-    if (gf_check_state(inst, fn, GF_INSTANTIATED)) return GF_ERROR;
-    if (!isfinite(start_time)) {
-        gf_log(inst, GF_ERROR, "%s: start time %g is not finite", fn, start_time);
-        return GF_ERROR;
-    }
-    inst->t_start = start_time;
-    inst->v[GF_VR_time] = start_time;
+    if (gf_set_start_time(inst, fn, start_time) != GF_OK) return GF_ERROR;
     inst->state = GF_INITIALIZATION;
     return GF_OK;
 }
