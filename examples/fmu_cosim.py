@@ -30,21 +30,11 @@ import numpy as np  # noqa: E402
 from grasprom.cli import load_surrogate  # noqa: E402
 from grasprom.controller import ControllerParams  # noqa: E402
 from grasprom.fmu import export_fmu  # noqa: E402
+from grasprom.pipeline import hand_force_N  # noqa: E402
 
 J = 2e-4  # kg m^2, handle + reflected motor inertia at the pivot
 B = 5e-3  # N m s / rad, pivot friction
 SUBSTEPS = 10
-
-
-def hand_force(t: float, ramp: float, hold: float, release: float, peak: float) -> float:
-    """Hand force at the grip (N): cosine ramp up, hold, cosine release, then zero."""
-    if t < ramp:
-        return peak * 0.5 * (1 - math.cos(math.pi * t / ramp))
-    if t < ramp + hold:
-        return peak
-    if t < ramp + hold + release:
-        return peak * 0.5 * (1 + math.cos(math.pi * (t - ramp - hold) / release))
-    return 0.0
 
 
 class _Fmu:
@@ -114,7 +104,7 @@ def main(argv: list[str] | None = None) -> int:
         fmu.set("theta", theta)
         fmu.step(t, T)
         torque, f_tissue, f_handle = fmu.get(outputs)
-        hand = hand_force(t, ramp, hold, release, args.peak)
+        hand = hand_force_N(t, ramp, hold, release, args.peak)
         dt = T / SUBSTEPS
         for _ in range(SUBSTEPS):
             acc = (L3 * (f_handle - hand) - B * omega) / J
