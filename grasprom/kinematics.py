@@ -379,35 +379,29 @@ def _slider_x_mm(theta_rad: Any, p: ChainParams) -> Any:
     return _xc(theta_rad, p.L2_mm, p.offset_d_mm, c.h, c.side)
 
 
-def _scalar_state(t: float, p: ChainParams) -> tuple[float, float, float, float, float]:
-    """Scalar fast path: (x_C, dx_C, d2x_C, sin beta, cos beta) at theta t (rad)."""
+def _linkage_state(th: Any, p: ChainParams, sin: Any, cos: Any, sqrt: Any) -> tuple[Any, ...]:
+    """(x_C, dx_C, d2x_C, sin beta, cos beta) at theta (rad), with the given sin/cos/sqrt."""
     c = p._c
     L2, d, h, side = p.L2_mm, p.offset_d_mm, c.h, c.side
-    sn, cs = math.sin(t), math.cos(t)
+    sn, cs = sin(th), cos(th)
     yb = h * sn + d * cs
     xb = h * cs - d * sn
     s = (yb - d) / L2
-    cb = math.sqrt(1.0 - s * s)
+    cb = sqrt(1.0 - s * s)
     tb = s / cb
     xc = xb + side * L2 * cb
     d1 = -yb - side * xb * tb
     d2 = -xb + side * yb * tb - side * xb * xb / (L2 * cb**3)
     return xc, d1, d2, s, cb
+
+
+def _scalar_state(t: float, p: ChainParams) -> tuple[float, float, float, float, float]:
+    """Scalar fast path (``math``): (x_C, dx_C, d2x_C, sin beta, cos beta) at theta t (rad)."""
+    return _linkage_state(t, p, math.sin, math.cos, math.sqrt)
 
 
 def _array_state(th: NDArray[np.float64], p: ChainParams) -> tuple[Any, ...]:
-    c = p._c
-    L2, d, h, side = p.L2_mm, p.offset_d_mm, c.h, c.side
-    sn, cs = np.sin(th), np.cos(th)
-    yb = h * sn + d * cs
-    xb = h * cs - d * sn
-    s = (yb - d) / L2
-    cb = np.sqrt(1.0 - s * s)
-    tb = s / cb
-    xc = xb + side * L2 * cb
-    d1 = -yb - side * xb * tb
-    d2 = -xb + side * yb * tb - side * xb * xb / (L2 * cb**3)
-    return xc, d1, d2, s, cb
+    return _linkage_state(th, p, np.sin, np.cos, np.sqrt)
 
 
 def _is_scalar(x: object) -> bool:
