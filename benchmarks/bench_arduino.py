@@ -6,7 +6,9 @@ cycles per controller step under simavr (max and mean over every material at fou
 on a closing/opening sweep of every encoder count), and the error against the float Python
 reference (handle force in % of the full-scale handle force, jaw force in % of the jaw-force
 full scale) over every material, every thickness node and midpoint, every count.  Then the
-float build of the same code path (``GF_FLOAT``) at the default tolerance.
+other build options of the same core (``grasp_core.c``): the tabulated step in float
+(``GF_FLOAT``) at the default tolerance, and the run-time step -- the FMU's -- compiled by avr-gcc
+(float, surrogate curves in flash), on three materials/thicknesses.
 
 Needs gcc, gcc-avr, avr-libc, binutils-avr, simavr and libsimavr-dev.
 
@@ -58,6 +60,17 @@ def main(argv: list[str]) -> None:
         for i, tol in enumerate((0.0025, 0.005, 0.01, 0.02)):
             print(row(sur, params, tol, True, Path(tmp) / f"fx{i}"), flush=True)
         print(row(sur, params, 0.01, False, Path(tmp) / "fl"), flush=True)
+        t = ar.build_tables(sur, params, 0.01)
+        counts = ar.sweep_counts(t, 9)
+        cases = [ar.TestCase(m, th, counts) for m, th in (("mr", 1400), ("nh", 2000), ("le", 850))]
+        rt = ar.run_runtime_avr(sur, params, cases, Path(tmp) / "rt")
+        print(
+            f"  run-time float (the FMU's step on the AVR): flash {rt.flash_B} B, cycles max "
+            f"{int(rt.cycles.max())} mean {rt.cycles.mean():.0f} "
+            f"({rt.cycles.mean() / ar.CYCLE_BUDGET:.1f} x budget), handle error "
+            f"{rt.handle_pct_fs:.1e} % FS, flag mismatches {rt.flag_mismatch}",
+            flush=True,
+        )
     print(f"({time.perf_counter() - t0:.1f} s)")
 
 

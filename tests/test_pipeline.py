@@ -102,20 +102,21 @@ def test_fmu_validates_and_simulates(built, name):
 def test_arduino_package_compiles(built, tmp_path):
     out, _ = built
     sk = out / "arduino" / "grasprom_controller"
-    for f in ("grasprom_controller.ino", "grasp_fixed.c", "grasp_fixed.h", "grasp_fixed_config.h",
+    for f in ("grasprom_controller.ino", "grasp_core.c", "grasp_core.h", "grasp_build.h",
+              "grasp_fixed_config.h",
               "grasp_fixed_tables.h", "Makefile"):  # fmt: skip
         assert (sk / f).is_file(), f
     if shutil.which("avr-gcc") is None:
         (pytest.fail if CI else pytest.skip)("avr-gcc missing: apt-get install gcc-avr avr-libc")
     main = tmp_path / "main.c"
     main.write_text(
-        '#include "grasp_fixed.h"\nstatic gf_state_t s;\nvolatile int16_t in;\n'
+        '#include "grasp_core.h"\nstatic gf_state_t s;\nvolatile int16_t in;\n'
         "volatile int32_t o32;\nint main(void) {\n    gf_output_t o;\n    gf_init(&s, 0, 1400);\n"
         "    for (;;) { gf_step(&s, in, &o); o32 = o.torque_uNm; }\n}\n"
     )
     res = subprocess.run(
         ["avr-gcc", "-mmcu=atmega328p", "-Os", "-std=gnu99", "-Wall", "-Wextra", "-Werror",
-         "-DF_CPU=16000000UL", f"-I{sk}", "-o", str(tmp_path / "fw.elf"), str(sk / "grasp_fixed.c"),
+         "-DF_CPU=16000000UL", f"-I{sk}", "-o", str(tmp_path / "fw.elf"), str(sk / "grasp_core.c"),
          str(main)],
         capture_output=True, text=True, timeout=120,
     )  # fmt: skip

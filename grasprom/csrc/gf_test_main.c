@@ -8,7 +8,7 @@
  * gf_step; read by gf_simavr_harness), then the CPU sleeps with interrupts off.  Host: bytes go
  * to stdout.
  */
-#include "grasp_fixed.h"
+#include "grasp_core.h"
 
 #ifdef __AVR__
 #include <avr/interrupt.h>

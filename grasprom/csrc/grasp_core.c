@@ -1,11 +1,18 @@
 /*
- * grasp_core.c: the controller step of grasprom in C (see grasp_core.h).
- * Mirrors grasprom/controller.py, grasprom/kinematics.py and the scalar path of
- * grasprom/surrogate.py operation by operation, so that results agree to rounding.
+ * grasp_core.c: the controller step of grasprom in C (see grasp_core.h for the build options).
+ * The run-time step mirrors grasprom/controller.py, grasprom/kinematics.py and the scalar path
+ * of grasprom/surrogate.py operation by operation, so that results agree to rounding; the
+ * tabulated step (GC_TABULATED) evaluates the tables grasprom.arduino computes with the same
+ * Python reference.
  */
 #include "grasp_core.h"
 
+#include <string.h>
 #include <math.h>
+
+
+#if !defined(GC_TABULATED)
+/* =============================================================== run-time (floating point) */
 
 #ifndef M_PI
 #define M_PI 3.14159265358979323846
@@ -21,7 +28,7 @@ static int bisect(const double *x, int n, double v) {
     int lo = 0, hi = n; /* first index with x[i] > v lies in [lo, hi] */
     while (lo < hi) {
         int mid = (lo + hi) / 2;
-        if (v < x[mid]) hi = mid; else lo = mid + 1;
+        if (v < GC_RD(&x[mid])) hi = mid; else lo = mid + 1;
     }
     return lo - 1;
 }
@@ -30,26 +37,28 @@ static int bisect(const double *x, int n, double v) {
  * *hint: last interval used (or -1); checked first, so slowly moving gaps skip the bisection
  * (the interval found is the same either way). */
 static int curve_eval_hint(const gc_curve_t *c, double x, double *f, double *dfdg, int *hint) {
-    double x0 = c->x[0], xn = c->x[c->n - 1];
-    int last = c->n - 2;
+    const double *xs = GC_PTR(c->x), *c0 = GC_PTR(c->c0), *c1 = GC_PTR(c->c1);
+    int n = GC_RDI(&c->n);
+    double x0 = GC_RD(&xs[0]), xn = GC_RD(&xs[n - 1]);
+    int last = n - 2;
     int k;
     double h, a1, a2, a3, v;
     if (x >= xn) { *f = 0.0; *dfdg = 0.0; return 0; }
     if (x < x0) {
-        v = c->c0[0] + c->c1[0] * (x - x0);
+        v = GC_RD(&c0[0]) + GC_RD(&c1[0]) * (x - x0);
         *f = v > 0.0 ? v : 0.0;
-        *dfdg = c->c1[0];
+        *dfdg = GC_RD(&c1[0]);
         return 1;
     }
     k = *hint;
-    if (!(k >= 0 && k <= last && c->x[k] <= x && x < c->x[k + 1])) {
-        k = bisect(c->x, c->n, x);
+    if (!(k >= 0 && k <= last && GC_RD(&xs[k]) <= x && x < GC_RD(&xs[k + 1]))) {
+        k = bisect(xs, n, x);
         if (k > last) k = last;
         *hint = k;
     }
-    h = x - c->x[k];
-    a1 = c->c1[k]; a2 = c->c2[k]; a3 = c->c3[k];
-    v = ((a3 * h + a2) * h + a1) * h + c->c0[k];
+    h = x - GC_RD(&xs[k]);
+    a1 = GC_RD(&c1[k]); a2 = GC_RD(&GC_PTR(c->c2)[k]); a3 = GC_RD(&GC_PTR(c->c3)[k]);
+    v = ((a3 * h + a2) * h + a1) * h + GC_RD(&c0[k]);
     *f = v > 0.0 ? v : 0.0;
     *dfdg = (3.0 * a3 * h + 2.0 * a2) * h + a1;
     return 0;
@@ -61,28 +70,28 @@ static int curve_eval(const gc_curve_t *c, double x, double *f, double *dfdg) {
 }
 
 int gc_surrogate(const gc_material_t *m, double gap, double t, double *force, double *stiffness) {
-    int n = m->n_curves, i, ba, bb;
+    int n = GC_RDI(&m->n_curves), i, ba, bb;
     double w, v, fa, fb, da, db, dfdg;
     if (n == 1) {
-        ba = curve_eval(&m->curves[0], gap, force, &dfdg);
+        ba = curve_eval(&GC_CURVES(m)[0], gap, force, &dfdg);
         *stiffness = -dfdg;
         return ba;
     }
-    i = bisect(m->thickness, n, t);
+    i = bisect(GC_PTR(m->thickness), n, t);
     if (i < 0) i = 0; else if (i > n - 2) i = n - 2;
-    w = (t - m->thickness[i]) * m->inv_dt[i];
+    w = (t - GC_RD(&GC_PTR(m->thickness)[i])) * GC_RD(&GC_PTR(m->inv_dt)[i]);
     if (w < 0.0) w = 0.0; else if (w > 1.0) w = 1.0;
     v = 1.0 - w;
-    if (m->aligned) {
-        double D = m->diameter, gca = m->contact_gap[i], gcb = m->contact_gap[i + 1];
+    if (GC_RDI(&m->aligned)) {
+        double D = GC_RD(&m->diameter), gca = GC_RD(&GC_PTR(m->contact_gap)[i]), gcb = GC_RD(&GC_PTR(m->contact_gap)[i + 1]);
         double dgc = gca - gcb, gct = gca - w * dgc, idn = 1.0 / (D - gct);
         double r = (D - gap) * idn * dgc;
-        ba = curve_eval(&m->curves[i], gap + w * r, &fa, &da);
-        bb = curve_eval(&m->curves[i + 1], gap - v * r, &fb, &db);
+        ba = curve_eval(&GC_CURVES(m)[i], gap + w * r, &fa, &da);
+        bb = curve_eval(&GC_CURVES(m)[i + 1], gap - v * r, &fb, &db);
         dfdg = v * (da * ((D - gca) * idn)) + w * (db * ((D - gcb) * idn));
     } else {
-        ba = curve_eval(&m->curves[i], gap, &fa, &da);
-        bb = curve_eval(&m->curves[i + 1], gap, &fb, &db);
+        ba = curve_eval(&GC_CURVES(m)[i], gap, &fa, &da);
+        bb = curve_eval(&GC_CURVES(m)[i + 1], gap, &fb, &db);
         dfdg = v * da + w * db;
     }
     *force = v * fa + w * fb;
@@ -93,21 +102,21 @@ int gc_surrogate(const gc_material_t *m, double gap, double t, double *force, do
 /* thickness blend of the step's material and thickness, computed once (same arithmetic as
  * gc_surrogate, so the results are identical) */
 static void blend_prepare(gc_state_t *s, const gc_material_t *m, double t) {
-    int n = m->n_curves, i;
+    int n = GC_RDI(&m->n_curves), i;
     double w;
     s->b_mat = m;
     s->b_t = t;
     s->hint[0] = s->hint[1] = -1;
     if (n == 1) { s->b_i = 0; s->b_w = 0.0; s->b_v = 1.0; return; }
-    i = bisect(m->thickness, n, t);
+    i = bisect(GC_PTR(m->thickness), n, t);
     if (i < 0) i = 0; else if (i > n - 2) i = n - 2;
-    w = (t - m->thickness[i]) * m->inv_dt[i];
+    w = (t - GC_RD(&GC_PTR(m->thickness)[i])) * GC_RD(&GC_PTR(m->inv_dt)[i]);
     if (w < 0.0) w = 0.0; else if (w > 1.0) w = 1.0;
     s->b_i = i;
     s->b_w = w;
     s->b_v = 1.0 - w;
-    if (m->aligned) {
-        double D = m->diameter, gca = m->contact_gap[i], gcb = m->contact_gap[i + 1];
+    if (GC_RDI(&m->aligned)) {
+        double D = GC_RD(&m->diameter), gca = GC_RD(&GC_PTR(m->contact_gap)[i]), gcb = GC_RD(&GC_PTR(m->contact_gap)[i + 1]);
         double dgc = gca - gcb, gct = gca - w * dgc, idn = 1.0 / (D - gct);
         s->b_dgc = dgc;
         s->b_idn = idn;
@@ -120,19 +129,19 @@ static int surrogate_fast(gc_state_t *s, double gap, double *force, double *stif
     const gc_material_t *m = s->b_mat;
     int i = s->b_i, ba, bb;
     double w = s->b_w, v = s->b_v, fa, fb, da, db, dfdg;
-    if (m->n_curves == 1) {
-        ba = curve_eval_hint(&m->curves[0], gap, force, &dfdg, &s->hint[0]);
+    if (GC_RDI(&m->n_curves) == 1) {
+        ba = curve_eval_hint(&GC_CURVES(m)[0], gap, force, &dfdg, &s->hint[0]);
         *stiffness = -dfdg;
         return ba;
     }
-    if (m->aligned) {
-        double r = (m->diameter - gap) * s->b_idn * s->b_dgc;
-        ba = curve_eval_hint(&m->curves[i], gap + w * r, &fa, &da, &s->hint[0]);
-        bb = curve_eval_hint(&m->curves[i + 1], gap - v * r, &fb, &db, &s->hint[1]);
+    if (GC_RDI(&m->aligned)) {
+        double r = (GC_RD(&m->diameter) - gap) * s->b_idn * s->b_dgc;
+        ba = curve_eval_hint(&GC_CURVES(m)[i], gap + w * r, &fa, &da, &s->hint[0]);
+        bb = curve_eval_hint(&GC_CURVES(m)[i + 1], gap - v * r, &fb, &db, &s->hint[1]);
         dfdg = v * (da * s->b_sa) + w * (db * s->b_sb);
     } else {
-        ba = curve_eval_hint(&m->curves[i], gap, &fa, &da, &s->hint[0]);
-        bb = curve_eval_hint(&m->curves[i + 1], gap, &fb, &db, &s->hint[1]);
+        ba = curve_eval_hint(&GC_CURVES(m)[i], gap, &fa, &da, &s->hint[0]);
+        bb = curve_eval_hint(&GC_CURVES(m)[i + 1], gap, &fb, &db, &s->hint[1]);
         dfdg = v * da + w * db;
     }
     *force = v * fa + w * fb;
@@ -196,8 +205,8 @@ int gc_check_params(const gc_params_t *p, const gc_material_t *materials, int n_
     }
     if (!isfinite(t)) { *message = "thickness must be finite"; return -5; }
     m = &materials[p->material];
-    lo = m->thickness[0];
-    hi = m->thickness[m->n_curves - 1];
+    lo = GC_RD(&GC_PTR(m->thickness)[0]);
+    hi = GC_RD(&GC_PTR(m->thickness)[GC_RDI(&m->n_curves) - 1]);
     if (t < lo) { *thickness_clamped = lo; *clamped = 1; }
     if (t > hi) { *thickness_clamped = hi; *clamped = 1; }
     *message = *clamped ? "thickness clamped into the tabulated range" : "ok";
@@ -308,3 +317,176 @@ void gc_step_ext(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
                  const gc_material_t *m, double theta, double theta_dot, gc_output_t *o) {
     step_impl(s, p, c, m, theta, 1, theta_dot, o);
 }
+
+#else /* GC_TABULATED */
+/* ============================================================= tabulated (fixed or float) */
+/*
+ * Step, per sample (Python reference: grasprom.controller.ImpedanceController.step):
+ *  1. clamp the count into [GF_N_LO, GF_N_TOP] (flag GF_THETA_CLAMPED);
+ *  2. velocity: w += (1 - a) (dn - w), dn the count difference, w in counts/sample Q16,
+ *     (1 - a) = GF_VEL_B / 2^16 with a = exp(-2 pi fc T) (exact discretisation, as Python);
+ *  3. jaw force through the virtual coupling: linear interpolation of the (thickness-blended)
+ *     node values y[] on the material's dyadic grid x[] (segment widths 2^k counts, so the
+ *     interpolation is a shift, no division); 0 from GF_N_CONTACT on (no contact);
+ *  4. handle force by virtual work: Fi = Fg * a(theta) + b(theta), a = g'(theta) / L3 (Q15) and
+ *     b = spring handle force (mN) on a uniform grid of 2^GF_CH_SHIFT counts;
+ *  5. damping: Fi -= KD * w (GF_KD: mN per count/sample, Q GF_KD_SHIFT);
+ *  6. saturation |Fi| <= GF_FI_LIMIT_MN (= torque limit / pulley radius), torque = Fi r;
+ *  7. flags: contact (count < GF_N_CONTACT), tissue warning (count <= warn_count) and coupling
+ *     active (count <= active_count), thresholds blended over the thickness at gf_init().
+ */
+#define GF_PROGMEM GC_TABLE
+#define GF_RD16(p) GC_RD16(p)
+#define GF_RD8(p) GC_RD8(p)
+#define GF_MEMCPY(d, s, n) GC_MEMCPY(d, s, n)
+
+/* one material: dyadic grid, thickness nodes, node values per thickness, flag thresholds */
+typedef struct {
+    const uint16_t *x;      /* nx grid counts, ascending, x[0] = GF_N_LO */
+    const uint8_t *k;       /* nx - 1 segment widths, log2 counts */
+    const uint16_t *t;      /* nt thicknesses, um, ascending */
+    const uint16_t *y;      /* nt rows of nx jaw forces, units of 2^GF_FG_SHIFT mN */
+    const int16_t *warn;    /* nt tissue-warning thresholds, counts */
+    const int16_t *active;  /* nt coupling-active thresholds, counts */
+    uint8_t nx;
+    uint8_t nt;
+} gf_material_t;
+
+#include "grasp_fixed_tables.h"
+
+#define GF_RD16S(p) ((int16_t)GF_RD16((const uint16_t *)(p)))
+
+/* floor(a * b / 2^16), exact; two 16 x 16 -> 32 bit multiplications (cheap on the AVR) */
+static int32_t mulq16(int32_t a, uint16_t b) {
+    int32_t hi = (int32_t)(int16_t)(a >> 16) * (int32_t)b;
+    uint32_t lo = ((uint32_t)(uint16_t)a * (uint32_t)b) >> 16;
+    return hi + (int32_t)lo;
+}
+
+int8_t gf_init(gf_state_t *s, uint8_t material, uint16_t thickness_um) {
+    gf_material_t m;
+    uint8_t j = 0, i;
+    int8_t rc = 0;
+    int32_t w14 = 0;
+    uint16_t t = thickness_um, t0, t1;
+    if (material >= GF_N_MATERIALS) return -1;
+    GF_MEMCPY(&m, &gf_materials[material], sizeof m);
+    t0 = GF_RD16(&m.t[0]);
+    t1 = GF_RD16(&m.t[m.nt - 1]);
+    if (t < t0) { t = t0; rc |= GF_THICKNESS_CLAMPED; }
+    if (t > t1) { t = t1; rc |= GF_THICKNESS_CLAMPED; }
+    if (m.nt > 1) {
+        while (j < m.nt - 2 && GF_RD16(&m.t[j + 1]) <= t) ++j;
+        t0 = GF_RD16(&m.t[j]);
+        t1 = GF_RD16(&m.t[j + 1]);
+        w14 = (int32_t)((((uint32_t)(t - t0)) << 14) / (uint32_t)(t1 - t0));
+    }
+    s->material = material;
+    s->thickness_um = t;
+    s->nx = m.nx;
+    s->x = m.x;
+    s->k = m.k;
+    for (i = 0; i < m.nx; ++i) {
+        int32_t ya = GF_RD16(&m.y[(uint16_t)j * m.nx + i]);
+        int32_t yb = m.nt > 1 ? (int32_t)GF_RD16(&m.y[(uint16_t)(j + 1) * m.nx + i]) : ya;
+        s->y[i] = (uint16_t)(ya + (((yb - ya) * w14 + 8192) >> 14));
+    }
+    {
+        int32_t wa = GF_RD16S(&m.warn[j]), aa = GF_RD16S(&m.active[j]);
+        int32_t wb = m.nt > 1 ? GF_RD16S(&m.warn[j + 1]) : wa;
+        int32_t ab = m.nt > 1 ? GF_RD16S(&m.active[j + 1]) : aa;
+        s->warn_count = (int16_t)(wa + (((wb - wa) * w14 + 8192) >> 14));
+        s->active_count = (int16_t)(aa + (((ab - aa) * w14 + 8192) >> 14));
+    }
+    s->w = 0;
+    s->prev = 0;
+    s->has_prev = 0;
+    return rc;
+}
+
+/* index of the segment [x[i], x[i+1]) holding n (x[0] <= n < x[nx-1]) */
+static uint8_t gf_segment(const gf_state_t *s, int16_t n) {
+    uint8_t lo = 0, hi = (uint8_t)(s->nx - 1);
+    while ((uint8_t)(hi - lo) > 1) {
+        uint8_t mid = (uint8_t)((lo + hi) >> 1);
+        if (n < (int16_t)GF_RD16(&s->x[mid])) hi = mid; else lo = mid;
+    }
+    return lo;
+}
+
+void gf_step(gf_state_t *s, int16_t count, gf_output_t *o) {
+    uint8_t flags = 0, ci;
+    int16_t n = count, dn, cm;
+    uint16_t cf;
+#ifdef GF_FLOAT
+    float fg = 0.0f, fi, fa, fb, v;
+#else
+    int32_t fg = 0, fi, fa, fb;
+#endif
+
+    if (n < GF_N_LO) { n = GF_N_LO; flags |= GF_THETA_CLAMPED; }
+    else if (n > GF_N_TOP) { n = GF_N_TOP; flags |= GF_THETA_CLAMPED; }
+    if (!s->has_prev) { s->prev = n; s->has_prev = 1; }
+    dn = n - s->prev;
+    s->prev = n;
+    s->w += mulq16((((int32_t)dn) << 16) - s->w, GF_VEL_B);
+
+    if (n < GF_N_CONTACT) {
+        uint8_t i = gf_segment(s, n);
+        int16_t x0 = (int16_t)GF_RD16(&s->x[i]);
+        uint8_t k = GF_RD8(&s->k[i]);
+        int32_t y0 = s->y[i], dy = (int32_t)s->y[i + 1] - y0;
+        flags |= GF_CONTACT;
+#ifdef GF_FLOAT
+        fg = ldexpf((float)y0 + ldexpf((float)dy * (float)(n - x0), -(int)k), GF_FG_SHIFT);
+#else
+        /* y0 + floor(dy (n - x0) / 2^k) as a 16 x 16 bit product and a 16-bit shift (k >= 1) */
+        fg = y0 + (((int32_t)(int16_t)dy * (int32_t)(uint16_t)((uint16_t)(n - x0) << (16 - k)))
+                   >> 16); /* units of 2^GF_FG_SHIFT mN */
+#endif
+        if (n <= s->warn_count) flags |= GF_TISSUE_WARNING;
+        if (n <= s->active_count) flags |= GF_COUPLING_ACTIVE;
+    }
+
+    cm = n - GF_N_LO;
+    ci = (uint8_t)(cm >> GF_CH_SHIFT);
+    cf = (uint16_t)(cm & ((1 << GF_CH_SHIFT) - 1));
+    {
+        int32_t a0 = GF_RD16(&gf_ch_a[ci]), a1 = GF_RD16(&gf_ch_a[ci + 1]);
+        int32_t b0 = GF_RD16S(&gf_ch_b[ci]), b1 = GF_RD16S(&gf_ch_b[ci + 1]);
+#ifdef GF_FLOAT
+        fa = ldexpf((float)a0 + ldexpf((float)(a1 - a0) * (float)cf, -GF_CH_SHIFT), -15);
+        fb = (float)b0 + ldexpf((float)(b1 - b0) * (float)cf, -GF_CH_SHIFT);
+#else
+        uint16_t cf16 = (uint16_t)(cf << (16 - GF_CH_SHIFT));
+        fa = a0 + (((int32_t)(int16_t)(a1 - a0) * (int32_t)cf16) >> 16); /* Q15 */
+        fb = b0 + (((int32_t)(int16_t)(b1 - b0) * (int32_t)cf16) >> 16); /* mN */
+#endif
+    }
+
+#ifdef GF_FLOAT
+    v = ldexpf((float)s->w, -16);
+    fi = fg * fa;
+    if (GF_RENDER_SPRING) fi += fb;
+    if (GF_KD != 0) fi -= ldexpf((float)GF_KD, -GF_KD_SHIFT) * v;
+    if (fi > (float)GF_FI_LIMIT_MN) { fi = (float)GF_FI_LIMIT_MN; flags |= GF_SATURATED; }
+    else if (fi < -(float)GF_FI_LIMIT_MN) { fi = -(float)GF_FI_LIMIT_MN; flags |= GF_SATURATED; }
+    o->force_handle_mN = (int32_t)(fi >= 0.0f ? fi + 0.5f : fi - 0.5f);
+    o->torque_uNm = (int32_t)(fi * (float)GF_R_Q8 / 256.0f);
+    o->force_jaw_mN = (int32_t)(fg + 0.5f);
+#else
+    fi = (int32_t)(((uint32_t)(uint16_t)fg * (uint32_t)(uint16_t)fa) >> (15 - GF_FG_SHIFT));
+    if (GF_RENDER_SPRING) fi += fb;
+    if (GF_KD != 0) fi -= mulq16(s->w, GF_KD) >> GF_KD_SHIFT;
+    if (fi > GF_FI_LIMIT_MN) { fi = GF_FI_LIMIT_MN; flags |= GF_SATURATED; }
+    else if (fi < -GF_FI_LIMIT_MN) { fi = -GF_FI_LIMIT_MN; flags |= GF_SATURATED; }
+    o->force_handle_mN = fi;
+    o->torque_uNm = (fi * GF_R_Q8) >> 8;
+    o->force_jaw_mN = fg << GF_FG_SHIFT;
+#endif
+    o->velocity_q16 = s->w;
+    o->count = n;
+    o->flags = flags;
+}
+
+#endif /* GC_TABULATED */

@@ -1,20 +1,71 @@
 /*
- * grasp_core: one step of the grasprom open-loop impedance controller, in C.
+ * grasp_core: one step of the grasprom open-loop impedance controller, in C -- the one core of
+ * the FMU (FMI 2 / FMI 3 co-simulation) and of the Arduino export.  The Python reference is
+ * grasprom.controller.ImpedanceController; tables and constants are generated from the Python
+ * objects (grasprom.ccore, grasprom.arduino); nothing is copied by hand.
  *
- * Shared by the FMU (FMI 2 / FMI 3 co-simulation) and the Arduino export; the Python
- * reference is grasprom.controller.ImpedanceController.  Tables (surrogate curves) and chain
- * constants are generated from the Python objects into "grasp_tables.h" by
- * grasprom.ccore.write_tables_header(); nothing is copied by hand.
+ * Build options (one source, three arithmetics):
  *
- * Units: lengths mm, forces N, torque N m, angles rad (the handle angle theta decreases when
- * closing), time s.  No dynamic memory; gc_step() allocates nothing.
+ *   default        run-time step, floating point: chain by trigonometry, tissue from the
+ *                  Hermite surrogate curves ("grasp_tables.h", grasprom.ccore), virtual
+ *                  coupling by three warm-started Newton iterations.  `double` on the host and
+ *                  in the FMU (bit-identical to Python); compiled by avr-gcc it is the *float*
+ *                  build (avr-gcc's double is 32-bit), tables in PROGMEM.
+ *   GC_TABULATED   tabulated step for microcontrollers: what the run-time step computes with
+ *                  trigonometry and Newton iterations is tabulated along the handle angle (in
+ *                  encoder counts) by grasprom.arduino ("grasp_fixed_config.h",
+ *                  "grasp_fixed_tables.h", PROGMEM); integer arithmetic (bit-identical on the
+ *                  host and the AVR), or float with GF_FLOAT (set by the generated config).
+ *
+ * Measured on the ATmega328P (simavr, 16 MHz; README and benchmarks/bench_arduino.py): the
+ * float run-time build and the float tabulated build both exceed the 1,600-cycle (1 kHz) budget;
+ * the fixed-point tabulated build meets it, hence it is the Arduino default.
+ *
+ * Run-time step units: lengths mm, forces N, torque N m, angles rad (the handle angle theta
+ * decreases when closing), time s.  No dynamic memory; the steps allocate nothing.
  */
 #ifndef GRASP_CORE_H
 #define GRASP_CORE_H
 
+/* Build selection: the Arduino export ships "grasp_build.h" (defines GC_TABULATED), so the
+ * sketch builds in the Arduino IDE without compiler flags; other builds (FMU, host tests) pass
+ * their options on the command line. */
+#if defined(__has_include)
+#if __has_include("grasp_build.h")
+#include "grasp_build.h"
+#endif
+#endif
+
+/* ---------------------------------------------------------------- table access (both builds) */
+/* Tables are ordinary constant arrays on the host; on the AVR they live in flash (PROGMEM) and
+ * are read with the pgm_read_* functions (the generated headers mark them GC_TABLE). */
+#ifdef __AVR__
+#include <avr/pgmspace.h>
+#define GC_TABLE PROGMEM
+#define GC_RD(p) pgm_read_float(p)         /* double (32-bit on the AVR) */
+#define GC_RDI(p) ((int)pgm_read_word(p))  /* int (16-bit on the AVR) */
+#define GC_RDP(p) pgm_read_ptr(p)          /* pointer */
+#define GC_RD16(p) pgm_read_word(p)
+#define GC_RD8(p) pgm_read_byte(p)
+#define GC_MEMCPY(d, s, n) memcpy_P((d), (s), (n))
+#else
+#define GC_TABLE
+#define GC_RD(p) (*(p))
+#define GC_RDI(p) (*(p))
+#define GC_RDP(p) (*(p))
+#define GC_RD16(p) (*(p))
+#define GC_RD8(p) (*(p))
+#define GC_MEMCPY(d, s, n) memcpy((d), (s), (n))
+#endif
+#define GC_PTR(field) ((const double *)GC_RDP(&(field)))
+#define GC_CURVES(m) ((const gc_curve_t *)GC_RDP(&(m)->curves))
+
 #ifdef __cplusplus
 extern "C" {
 #endif
+
+#if !defined(GC_TABULATED)
+/* =============================================================== run-time (floating point) */
 
 /* One surrogate curve (one wall thickness): monotone cubic Hermite pieces on ascending gap
  * nodes x[0..n-1]; piece k (k < n-1) is c0 + c1 h + c2 h^2 + c3 h^3 with h = gap - x[k]. */
@@ -129,6 +180,66 @@ void gc_step(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c, const gc_
  * reports theta_dot). Used by the FMU when the importer provides the velocity. */
 void gc_step_ext(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
                  const gc_material_t *m, double theta, double theta_dot, gc_output_t *out);
+
+#else /* GC_TABULATED */
+/* ============================================================= tabulated (fixed or float) */
+/*
+ * Integer interface (units in the names):
+ *   count  handle angle in encoder counts, theta = count * GF_Q_RAD (rad), the absolute angle
+ *          of the handle (count 0 = theta 0; the chain's closed end is GF_N_LO, open GF_N_TOP)
+ *   torque micro newton metre (uN m = mN mm); handle and jaw forces in mN
+ *   velocity in encoder counts per sample, Q16
+ *
+ * Allocation-free; gf_step() has no division and no loop other than the binary search of
+ * the angle grid (<= log2(GF_NX_MAX) + 1 iterations).
+ */
+#include <stdint.h>
+
+/* generated by grasprom.arduino: scalar constants of the export (GF_NX_MAX, GF_N_TOP, ...) */
+#include "grasp_fixed_config.h"
+
+/* output flags (gf_output_t.flags) */
+#define GF_CONTACT 0x01u          /* jaws touch the tissue (kinematic gap < diameter) */
+#define GF_TISSUE_WARNING 0x02u   /* tissue force or mean pressure at the warning level */
+#define GF_COUPLING_ACTIVE 0x04u  /* tissue stiffer than the virtual coupling */
+#define GF_SATURATED 0x08u        /* torque limited */
+#define GF_THETA_CLAMPED 0x10u    /* count outside [GF_N_LO, GF_N_TOP], clamped */
+
+/* gf_init() return bits */
+#define GF_THICKNESS_CLAMPED 0x01
+
+typedef struct {
+    int32_t torque_uNm;      /* motor torque after saturation, uN m */
+    int32_t force_handle_mN; /* rendered handle force = torque / pulley radius, mN */
+    int32_t force_jaw_mN;    /* rendered jaw force through the virtual coupling, mN */
+    int32_t velocity_q16;    /* filtered handle velocity, counts/sample, Q16 */
+    int16_t count;           /* handle angle after clamping, counts */
+    uint8_t flags;           /* GF_* flags above */
+} gf_output_t;
+
+typedef struct {
+    int32_t w;             /* filtered velocity, counts/sample Q16 */
+    int16_t prev;          /* last count */
+    uint8_t has_prev;
+    uint8_t material;
+    uint8_t nx;            /* grid nodes of the material */
+    uint16_t thickness_um; /* after clamping */
+    int16_t warn_count;    /* tissue warning for count <= warn_count (-32768: never) */
+    int16_t active_count;  /* coupling active for count <= active_count */
+    const uint16_t *x;     /* grid counts (PROGMEM on AVR) */
+    const uint8_t *k;      /* log2 of each segment width (PROGMEM on AVR) */
+    uint16_t y[GF_NX_MAX]; /* jaw force at the grid nodes, blended for the thickness */
+} gf_state_t;
+
+/* Select material (0 mr, 1 nh, 2 le) and wall thickness (um; clamped into the tabulated range
+ * and flagged); resets the state.  Returns GF_THICKNESS_CLAMPED bits, or -1 for an unknown
+ * material.  Not real-time (blends the thickness tables into RAM). */
+int8_t gf_init(gf_state_t *s, uint8_t material, uint16_t thickness_um);
+
+/* One controller step with the handle angle in encoder counts. */
+void gf_step(gf_state_t *s, int16_t count, gf_output_t *out);
+
+#endif /* GC_TABULATED */
 
 #ifdef __cplusplus
 }
