@@ -31,6 +31,35 @@ One step, at the sample time ``T`` (default 1 ms, 1 kHz):
    width of the flattened tube (FE: 46-48 mm once the walls meet); before the walls meet the
    contact is narrower, so the force threshold is the binding one there.
 
+Rendered instrument effects (the augmented model of ``grasprom diagnose``, mapped by
+:func:`grasprom.diagnosis.controller_params_from_augmented`; every one is off at its default, and
+the step is then bit-identical to the one without them):
+
+* **Backlash** ``backlash_deg`` (total play width ``b``): between the encoder and the linkage sits
+  a play operator, ``theta_c = min(max(theta_c, theta - b/2), theta + b/2)`` (started at the first
+  angle, kept in the chain's range); gap, tissue, spring and virtual work use the chain angle
+  ``theta_c`` (output ``theta_chain_deg``), ``theta_deg`` stays the encoder angle.
+* **Tissue stiffness scale** ``tissue_scale``: surrogate force and stiffness times the factor.
+* **Jaw compliance** ``jaw_compliance_mm_per_N`` (``C``): a series compliance of jaw and
+  mechanism, rendered inside the coupling, ``k_c,eff = 1 / (1/k_c + C)``: the proxy gap is
+  ``g + (C + 1/k_c) Fg`` (the real gap ``g + C Fg`` plus the coupling's own stretch).
+* **Viscoelasticity** ``prony_g``, ``prony_tau_s`` (at most 4 terms): quasi-linear viscoelastic
+  Prony series on the coupled (relaxed) jaw force ``Fg``: ``h_i <- exp(-T/tau_i) h_i + dFg``,
+  ``Fg,r = max(Fg + sum g_i h_i, 0)`` (the jaws cannot pull); the instantaneous stiffness is
+  ``(1 + sum g_i)`` times the relaxed one (``grasprom tune`` accounts for it).
+* **Mechanism friction** ``friction_coulomb_N``, ``friction_load_coefficient``,
+  ``friction_viscous_N_s_per_mm``: at the finger, ``dFi = (Fc + mu |Fi_t|) s + b v_f`` with
+  ``v_f = -L3 theta'`` the finger speed (mm/s, > 0 closing, from the velocity used for the
+  damping), ``Fi_t = Fg,r g'/L3`` the tissue part of the handle force and ``s`` the direction of
+  the last finger motion faster than ``friction_velocity_threshold_mm_per_s`` (+1 closing, -1
+  opening, 0 before the first; kept while slower: stiction memory); output
+  ``force_handle_friction_N``.  Friction resists the motion (closing: ``dFi > 0``).  The viscous
+  term is a virtual damping ``b L3^2`` on the same filtered velocity: ``grasprom tune`` adds it to
+  ``B`` in the passivity condition.
+
+Measurement effects of the augmented model (force-sensor offset/gain, latency) are not rendered:
+``grasprom simulate --augmented`` applies them to an extra output column only.
+
 Sign conventions (as :mod:`grasprom.kinematics`): ``theta`` (rad inside, deg at the user surface)
 decreases when closing; ``Fi > 0`` resists closing (the device pushes the handle open);
 ``torque > 0`` produces ``Fi > 0``.
@@ -54,6 +83,9 @@ NEWTON_ITERATIONS = 3
 
 COLD_START_ITERATIONS = 30
 """Newton iterations on the first contact step after a reset (no warm start yet)."""
+
+MAX_PRONY_TERMS = 4
+"""Largest number of Prony terms the controller renders (the C core has room for 4)."""
 
 
 @dataclass(frozen=True)
@@ -99,6 +131,30 @@ class ControllerParams:
         Include the instrument's return spring in the rendered handle force.
     chain : kinematics.ChainParams
         Linkage geometry (``spring_k_N_per_mm`` above replaces its spring rate).
+    tissue_scale : float
+        Factor on the surrogate tissue force and stiffness (1, > 0); ``tissue_stiffness_scale``
+        of the augmented model.
+    jaw_compliance_mm_per_N : float
+        Series compliance of jaw and mechanism ``C`` (mm/N, >= 0): the coupling becomes
+        ``k_c,eff = 1 / (1/k_c + C)`` (proxy gap ``g + (C + 1/k_c) Fg``).
+    backlash_deg : float
+        Total play width between the encoder and the linkage (deg of handle, >= 0).
+    friction_coulomb_N : float
+        Coulomb friction at the finger (N, >= 0), in the direction of the last motion.
+    friction_load_coefficient : float
+        Load-proportional Coulomb friction (1, >= 0): ``mu |Fi_t|`` with ``Fi_t`` the tissue part
+        of the handle force (N).
+    friction_viscous_N_s_per_mm : float
+        Viscous friction at the finger (N s/mm of finger speed, >= 0); a virtual damping of
+        ``b L3^2 1e-3`` N m s/rad at the handle pivot.
+    friction_velocity_threshold_mm_per_s : float
+        Finger speed (mm/s, > 0) above which the friction direction follows the motion; below
+        it the last direction is kept.
+    prony_g : tuple of float
+        Prony coefficients ``g_i`` (1, >= 0) of the quasi-linear viscoelastic jaw force, at most
+        :data:`MAX_PRONY_TERMS`; the instantaneous stiffness is ``1 + sum g_i`` times the relaxed.
+    prony_tau_s : tuple of float
+        Relaxation times ``tau_i`` (s, > 0), as many as ``prony_g``.
     """
 
     thickness_mm: float = 1.4
@@ -117,6 +173,15 @@ class ControllerParams:
     encoder_counts_per_rev: int = 4096
     render_spring: bool = True
     chain: kin.ChainParams = field(default_factory=kin.ChainParams)
+    tissue_scale: float = 1.0
+    jaw_compliance_mm_per_N: float = 0.0
+    backlash_deg: float = 0.0
+    friction_coulomb_N: float = 0.0
+    friction_load_coefficient: float = 0.0
+    friction_viscous_N_s_per_mm: float = 0.0
+    friction_velocity_threshold_mm_per_s: float = 2.0
+    prony_g: tuple[float, ...] = ()
+    prony_tau_s: tuple[float, ...] = ()
 
     def __post_init__(self):
         if self.material not in MATERIAL_NAMES:
@@ -134,6 +199,8 @@ class ControllerParams:
             "pressure_warning_MPa",
             "jaw_length_mm",
             "diameter_mm",
+            "tissue_scale",
+            "friction_velocity_threshold_mm_per_s",
         )
         for name in positive:
             v = getattr(self, name)
@@ -143,6 +210,44 @@ class ControllerParams:
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise ValueError(f"controller parameter {name} must be finite and >= 0, got {v!r}")
+        for name in (
+            "jaw_compliance_mm_per_N",
+            "backlash_deg",
+            "friction_coulomb_N",
+            "friction_load_coefficient",
+            "friction_viscous_N_s_per_mm",
+        ):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
+                raise ValueError(f"controller parameter {name} must be finite and >= 0, got {v!r}")
+        for name in ("prony_g", "prony_tau_s"):
+            v = getattr(self, name)
+            if isinstance(v, str) or not isinstance(v, tuple | list):
+                raise ValueError(
+                    f"controller parameter {name} must be a list of numbers, got {v!r}"
+                )
+            if not all(isinstance(x, int | float) and not isinstance(x, bool) for x in v):
+                raise ValueError(f"controller parameter {name} must hold numbers, got {v!r}")
+            object.__setattr__(self, name, tuple(float(x) for x in v))
+        if len(self.prony_g) != len(self.prony_tau_s):
+            raise ValueError(
+                f"controller parameters prony_g ({len(self.prony_g)} terms) and prony_tau_s "
+                f"({len(self.prony_tau_s)} terms) must have the same length"
+            )
+        if len(self.prony_g) > MAX_PRONY_TERMS:
+            raise ValueError(
+                f"controller parameter prony_g: at most {MAX_PRONY_TERMS} Prony terms, got "
+                f"{len(self.prony_g)}"
+            )
+        for i, (g, tau) in enumerate(zip(self.prony_g, self.prony_tau_s)):
+            if not (math.isfinite(g) and g >= 0):
+                raise ValueError(
+                    f"controller parameter prony_g[{i}] must be finite and >= 0, got {g!r}"
+                )
+            if not (math.isfinite(tau) and tau > 0):
+                raise ValueError(
+                    f"controller parameter prony_tau_s[{i}] must be finite and > 0 s, got {tau!r}"
+                )
         if int(self.encoder_counts_per_rev) < 0:
             raise ValueError("controller parameter encoder_counts_per_rev must be >= 0")
         if self.velocity_cutoff_Hz >= 0.5 / self.sample_time_s:
@@ -161,24 +266,94 @@ class ControllerParams:
         """Contact width of the flattened tube, ``pi (D - t) / 2`` (mm)."""
         return 0.5 * math.pi * (self.diameter_mm - self.thickness_mm)
 
+    @property
+    def coupling_effective_N_per_mm(self) -> float:
+        """Coupling in series with the jaw compliance, ``1 / (1/k_c + C)`` (N/mm; k_c at C = 0)."""
+        kc, c = self.coupling_stiffness_N_per_mm, self.jaw_compliance_mm_per_N
+        return kc if c == 0 else 1.0 / (1.0 / kc + c)
 
-class StepOutput(NamedTuple):
-    """Outputs of one controller step (units in the names)."""
+    @property
+    def friction_rendered(self) -> bool:
+        """Whether any friction term is on."""
+        return (
+            self.friction_coulomb_N > 0
+            or self.friction_load_coefficient > 0
+            or self.friction_viscous_N_s_per_mm > 0
+        )
 
+
+class _StepFields(NamedTuple):
     torque_Nm: float  # motor torque, after saturation
     force_handle_N: float  # rendered handle force = torque / pulley radius (incl. damping)
     force_handle_spring_N: float  # handle force of the return spring alone
-    force_jaw_N: float  # rendered jaw force (through the virtual coupling)
-    force_tissue_N: float  # surrogate tissue force at the kinematic gap
-    gap_mm: float
+    force_jaw_N: float  # rendered jaw force (through the virtual coupling; Prony included)
+    force_tissue_N: float  # (scaled) surrogate tissue force at the kinematic gap
+    gap_mm: float  # kinematic gap at the chain angle
     proxy_gap_mm: float
-    theta_deg: float
+    theta_deg: float  # encoder angle (quantised, clamped)
     velocity_rad_per_s: float
     contact: bool
     tissue_warning: bool
     coupling_active: bool
     saturated: bool
     theta_clamped: bool
+    theta_chain_deg: float  # chain angle behind the backlash (= theta_deg without backlash)
+    force_handle_friction_N: float  # rendered friction at the finger (0 without friction)
+
+
+class StepOutput(_StepFields):
+    """Outputs of one controller step (units in the names).
+
+    The two trailing fields, ``theta_chain_deg`` and ``force_handle_friction_N``, may be omitted
+    by an implementation that renders neither backlash nor friction: they then default to
+    ``theta_deg`` and 0.0, their values in that case.
+    """
+
+    __slots__ = ()
+
+    def __new__(
+        cls,
+        torque_Nm: float,
+        force_handle_N: float,
+        force_handle_spring_N: float,
+        force_jaw_N: float,
+        force_tissue_N: float,
+        gap_mm: float,
+        proxy_gap_mm: float,
+        theta_deg: float,
+        velocity_rad_per_s: float,
+        contact: bool,
+        tissue_warning: bool,
+        coupling_active: bool,
+        saturated: bool,
+        theta_clamped: bool,
+        theta_chain_deg: float | None = None,
+        force_handle_friction_N: float = 0.0,
+    ) -> StepOutput:
+        return _tuple_new(
+            cls,
+            (
+                torque_Nm,
+                force_handle_N,
+                force_handle_spring_N,
+                force_jaw_N,
+                force_tissue_N,
+                gap_mm,
+                proxy_gap_mm,
+                theta_deg,
+                velocity_rad_per_s,
+                contact,
+                tissue_warning,
+                coupling_active,
+                saturated,
+                theta_clamped,
+                theta_deg if theta_chain_deg is None else theta_chain_deg,
+                force_handle_friction_N,
+            ),
+        )
+
+
+_tuple_new = tuple.__new__
 
 
 class ImpedanceController:
@@ -212,9 +387,15 @@ class ImpedanceController:
         self._th_hi = math.radians(th_hi)
         self._q = 2.0 * math.pi * params.pulley_radius_mm / (n * self._chain.L3_mm) if n else 0.0
         self._a = math.exp(-2.0 * math.pi * params.velocity_cutoff_Hz * params.sample_time_s)
-        self._kc = params.coupling_stiffness_N_per_mm
+        self._kc = params.coupling_effective_N_per_mm
         self._area = params.jaw_length_mm * params.contact_width_mm
         self._L3 = self._chain.L3_mm
+        self._scale = params.tissue_scale
+        self._hb = 0.5 * math.radians(params.backlash_deg)
+        self._pg = params.prony_g
+        self._pa = [math.exp(-params.sample_time_s / tau) for tau in params.prony_tau_s]
+        self._np = len(params.prony_g)
+        self._fric = params.friction_rendered
         self.reset()
 
     @property
@@ -223,13 +404,21 @@ class ImpedanceController:
         return self._q
 
     def reset(self, theta_rad: float | None = None) -> None:
-        """Reset the state (velocity filter, previous angle, proxy)."""
+        """Reset the state (velocity filter, previous angle, proxy, play, friction, Prony)."""
         self._prev = theta_rad
         self._v = 0.0
         self._gp = math.inf
+        self._play = None  # chain angle behind the backlash (rad), set on the first step
+        self._sdir = 0.0  # friction direction: +1 closing, -1 opening, 0 not moved yet
+        self._h = [0.0] * self._np  # Prony states (N)
+        self._fg_prev = 0.0  # coupled jaw force of the previous step (N)
 
     def _tissue(self, g: float) -> tuple[float, float]:
         f, k, _ = self.surrogate.evaluate_scalar(g, self.params.thickness_mm, self.params.material)
+        s = self._scale
+        if s != 1.0:
+            f = f * s
+            k = k * s
         return f, k  # force (N) and stiffness k_t = -dF/dgap >= 0 (N/mm)
 
     def quantise(self, theta_rad: float) -> float:
@@ -267,8 +456,17 @@ class ImpedanceController:
         v_raw = (th - self._prev) / p.sample_time_s
         self._prev = th
         self._v = self._a * self._v + (1.0 - self._a) * v_raw
+        thc = th  # chain angle: the encoder angle through the play
+        hb = self._hb
+        if hb > 0.0:
+            y = th if self._play is None else self._play
+            y = min(max(y, th - hb), th + hb)
+            y = min(max(y, self._th_lo), self._th_hi)
+            self._play = y
+            thc = y
         th_deg = math.degrees(th)
-        g = kin.gap_mm(th_deg, self._chain)
+        thc_deg = math.degrees(thc)
+        g = kin.gap_mm(thc_deg, self._chain)
         f_g, k_g = self._tissue(g)
         contact = f_g > 0.0
         kc = self._kc
@@ -286,13 +484,38 @@ class ImpedanceController:
         else:
             gp, fg, coupling_active = g, 0.0, False
         self._gp = gp
-        fi_spring = kin.spring_handle_force_N(th_deg, self._chain)
-        fi = kin.handle_force_N(fg, th_deg, self._chain)  # includes the spring
+        fgr = fg  # rendered jaw force
+        if self._np:
+            d = fg - self._fg_prev
+            self._fg_prev = fg
+            h, pa, pg = self._h, self._pa, self._pg
+            acc = 0.0
+            for i in range(self._np):
+                h[i] = pa[i] * h[i] + d
+                acc += pg[i] * h[i]
+            fgr = fg + acc
+            if fgr < 0.0:
+                fgr = 0.0
+        fi_spring = kin.spring_handle_force_N(thc_deg, self._chain)
+        fi = kin.handle_force_N(fgr, thc_deg, self._chain)  # includes the spring
         if not p.render_spring:
             fi -= fi_spring
         v_damp = self._v
         if theta_dot is not None and math.isfinite(theta_dot):
             v_damp = float(theta_dot)
+        f_fric = 0.0
+        if self._fric:
+            vf = -v_damp * self._L3  # finger speed, mm/s, > 0 closing
+            thr = p.friction_velocity_threshold_mm_per_s
+            if vf > thr:
+                self._sdir = 1.0
+            elif vf < -thr:
+                self._sdir = -1.0
+            fit = fgr * kin.dgap_dtheta_mm_per_rad(thc_deg, self._chain) / self._L3
+            f_fric = (
+                p.friction_coulomb_N + p.friction_load_coefficient * abs(fit)
+            ) * self._sdir + p.friction_viscous_N_s_per_mm * vf
+            fi += f_fric
         fi -= p.damping_Nms_per_rad * v_damp / (self._L3 * 1e-3)
         r_m = p.pulley_radius_mm * 1e-3
         torque = fi * r_m
@@ -305,7 +528,7 @@ class ImpedanceController:
             torque_Nm=torque,
             force_handle_N=torque / r_m,
             force_handle_spring_N=fi_spring,
-            force_jaw_N=fg,
+            force_jaw_N=fgr,
             force_tissue_N=f_g,
             gap_mm=g,
             proxy_gap_mm=gp,
@@ -316,6 +539,8 @@ class ImpedanceController:
             coupling_active=coupling_active,
             saturated=saturated,
             theta_clamped=clamped,
+            theta_chain_deg=thc_deg,
+            force_handle_friction_N=f_fric,
         )
 
 
@@ -327,6 +552,8 @@ def params_to_dict(params: ControllerParams) -> dict:
     from dataclasses import fields
 
     d = {f.name: getattr(params, f.name) for f in fields(params) if f.name != "chain"}
+    for name in ("prony_g", "prony_tau_s"):
+        d[name] = list(d[name])
     d["chain"] = {f.name: getattr(params.chain, f.name) for f in fields(params.chain) if f.init}
     d["format_version"] = CONTROLLER_FILE_VERSION
     return d
@@ -408,6 +635,8 @@ SIMULATION_COLUMNS = (
     "coupling_active",
     "saturated",
     "theta_clamped",
+    "theta_chain_deg",
+    "force_handle_friction_N",
 )
 
 

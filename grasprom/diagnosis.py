@@ -52,6 +52,7 @@ from scipy.optimize import lsq_linear, minimize_scalar
 from scipy.signal import lfilter
 
 from . import kinematics as kin
+from .controller import MAX_PRONY_TERMS, ControllerParams
 from .surrogate import Surrogate
 
 FloatArray = NDArray[np.float64]
@@ -573,7 +574,7 @@ def prepare_arrays(
     material: str,
     chain: kin.ChainParams,
 ) -> _Prep:
-    """Model-only preparation of an angle trajectory (for :func:`apply_augmented`)."""
+    """Model-only preparation of an angle trajectory (for :meth:`AugmentedModel.handle_force_N`)."""
     t = np.asarray(time_s, dtype=float)
     th = np.asarray(theta_deg, dtype=float)
     idx = np.arange(t.size)
@@ -595,7 +596,14 @@ def _play_deg(x: FloatArray, width: float) -> FloatArray:
 def _compliant(
     surrogate: Surrogate, g: FloatArray, c: float, t: float, mat: str, f_free: FloatArray
 ) -> FloatArray:
-    """Solve ``F = F_s(g + c F)`` (N) by safeguarded Newton on the contact samples."""
+    """Solve ``F = F_s(g + c F)`` (N) on the contact samples, bracketed in ``[0, F_s(g)]``.
+
+    Newton on ``r(F) = F - F_s(g + c F)`` (increasing, ``r' = 1 + c k_s``) with a bisection
+    whenever the step leaves the bracket or does not halve the step before it (``rtsafe``):
+    the surrogate's stiffness jumps where the walls meet, and a plain Newton iteration there can
+    creep for many steps.  Converged to ``|r| <= 1e-10 max(1, F)`` (N), in 3-16 iterations on the
+    shipped surrogate, at most 60.
+    """
     out = np.zeros_like(g)
     m = f_free > 0
     if not np.any(m) or c <= 0:
@@ -604,16 +612,26 @@ def _compliant(
     lo = np.zeros_like(gg)
     hi = f_free[m].copy()
     f = hi * 0.5
-    for _ in range(7):
+    dx_old = hi - lo
+    dx = dx_old.copy()
+    for _ in range(60):
         gp = gg + c * f
         fs = np.asarray(surrogate.force(gp, t, mat))
         ks = np.asarray(surrogate.stiffness(gp, t, mat))
         r = f - fs  # increasing in f
+        dr = 1.0 + c * ks
         lo = np.where(r < 0, f, lo)
         hi = np.where(r > 0, f, hi)
-        fn = f - r / (1.0 + c * ks)
-        inside = (fn > lo) & (fn < hi)
-        f = np.where(inside, fn, 0.5 * (lo + hi))
+        done = (np.abs(r) <= 1e-10 * np.maximum(1.0, fs)) | (
+            hi - lo <= 1e-13 * np.maximum(1.0, hi)
+        )
+        if np.all(done):
+            break
+        fn = f - r / dr
+        newton = (fn > lo) & (fn < hi) & (np.abs(2.0 * r) <= np.abs(dx_old * dr))
+        dx_old = dx
+        dx = np.where(newton, r / dr, f - 0.5 * (lo + hi))
+        f = np.where(done, f, f - dx)
     out[m] = f
     return out
 
@@ -1356,7 +1374,18 @@ def _jsonable(o: Any) -> Any:
 # =============================================================================== augmented model
 @dataclass
 class AugmentedModel:
-    """The baseline chain plus fitted effects (loaded from the augmented-model JSON)."""
+    """The baseline chain plus fitted effects (loaded from the augmented-model JSON).
+
+    Parameters
+    ----------
+    effects : dict
+        Effect name (:data:`EFFECTS`) -> parameter name -> reported value (units of
+        :attr:`ParamSpec.unit`).
+    chain : kinematics.ChainParams
+        Instrument chain the effects were fitted with.
+    meta : dict
+        The other keys of the file (verdict, surrogate, held-out RMS...).
+    """
 
     effects: dict[str, dict[str, float]]
     chain: kin.ChainParams
@@ -1370,7 +1399,27 @@ class AugmentedModel:
         material: str,
         surrogate: Surrogate,
     ) -> FloatArray:
-        """Augmented-model handle force (N) along an angle trajectory (s, deg)."""
+        """Augmented-model handle force along an angle trajectory (static chain, vectorised).
+
+        The diagnosis' own model (:func:`_evaluate` / :func:`_combine`), measurement effects
+        included; independent of the controller step.
+
+        Parameters
+        ----------
+        time_s : ndarray
+            Sample times, s (strictly increasing).
+        theta_deg : ndarray
+            Measured handle angle, deg.
+        thickness_mm : float
+            Nominal wall thickness, mm.
+        material : str
+        surrogate : Surrogate
+
+        Returns
+        -------
+        ndarray
+            Handle force, N (return spring included).
+        """
         prep = prepare_arrays(time_s, theta_deg, thickness_mm, material, self.chain)
         names = [e for e in _ORDER if e in self.effects]
         nl = [
@@ -1402,6 +1451,8 @@ def load_augmented(path: str | Path) -> AugmentedModel:
         d = json.loads(p.read_text())
     except (OSError, json.JSONDecodeError) as e:
         raise ValueError(f"{p}: cannot read augmented model ({e})") from None
+    if not isinstance(d, dict):
+        raise ValueError(f"{p}: not a {FORMAT_AUGMENTED} file (expected a JSON object)")
     if d.get("format") != FORMAT_AUGMENTED or d.get("format_version") != FORMAT_VERSION:
         raise ValueError(
             f"{p}: not a {FORMAT_AUGMENTED} v{FORMAT_VERSION} file "
@@ -1426,42 +1477,182 @@ def load_augmented(path: str | Path) -> AugmentedModel:
     return AugmentedModel(effects, chain, {k: v for k, v in d.items() if k != "effects"})
 
 
-def apply_augmented(
-    sim: pd.DataFrame,
-    model: AugmentedModel,
-    thickness_mm: float,
-    material: str,
-    surrogate: Surrogate,
-) -> pd.DataFrame:
-    """Correct a simulation (``grasprom simulate`` output) with an augmented model.
+RENDERED_EFFECTS = (
+    "tissue_viscoelasticity",
+    "mechanism_friction",
+    "backlash",
+    "jaw_compliance",
+    "thickness_error",
+    "tissue_stiffness_scale",
+)
+"""Effects of the instrument the controller renders (:func:`controller_params_from_augmented`)."""
 
-    The correction is the difference between the augmented and the baseline static model along
-    the simulated angle, added to ``force_handle_N`` (N); ``torque_Nm`` follows only if the
-    caller rescales it (the pulley radius is not in the simulation table).
+MEASUREMENT_EFFECTS = ("sensor_offset_gain", "latency")
+"""Effects of the measurement (force sensor, time base): never rendered by the controller."""
+
+
+def controller_params_from_augmented(
+    params: ControllerParams,
+    model: AugmentedModel,
+    surrogate: Surrogate | None = None,
+) -> tuple[ControllerParams, dict[str, Any]]:
+    """Controller parameters that render the instrument effects of an augmented model.
+
+    The augmented model of ``grasprom diagnose`` describes the real instrument; the controller
+    renders its instrument effects, so the diagnosis improves the controller (``grasprom
+    simulate --augmented``, ``grasprom tune --augmented`` and the exports of the tuned
+    parameters):
+
+    ==========================  ===============================================================
+    effect                      controller parameter (see :class:`ControllerParams`)
+    ==========================  ===============================================================
+    thickness_error             ``thickness_mm`` += ``offset_mm`` (clamped into the surrogate's
+                                range when ``surrogate`` is given, as the diagnosis does)
+    tissue_stiffness_scale      ``tissue_scale`` = ``scale``
+    jaw_compliance              ``jaw_compliance_mm_per_N`` = ``compliance_mm_per_N``
+    backlash                    ``backlash_deg`` = ``play_deg``
+    mechanism_friction          ``friction_coulomb_N``, ``friction_load_coefficient``,
+                                ``friction_viscous_N_s_per_mm``
+    tissue_viscoelasticity      ``prony_g`` / ``prony_tau_s``: the non-zero ``g_i`` at
+                                :data:`PRONY_TAUS_S`
+    sensor_offset_gain          not rendered (a property of the force sensor): returned in
+                                ``measurement`` (``offset_N``, ``gain``)
+    latency                     not rendered (a delay of the measurement): ``measurement``
+                                (``delay_s``)
+    ==========================  ===============================================================
+
+    The model's chain replaces ``params.chain`` (``params.spring_k_N_per_mm`` is kept).  Fields of
+    effects absent from the model are left as they are.  Values outside the controller's bounds
+    (a negative friction or Prony coefficient, a non-positive scale) are clipped to the bound
+    (a non-positive scale: left at 1) with a warning.
 
     Parameters
     ----------
-    sim : pandas.DataFrame
-        Needs ``time_s``, ``theta_deg`` and ``force_handle_N``.
+    params : ControllerParams
+        Parameters without the augmentation (``thickness_mm`` the nominal wall thickness, mm).
     model : AugmentedModel
-    thickness_mm : float
-        Nominal wall thickness (mm).
-    material : str
-    surrogate : Surrogate
+    surrogate : Surrogate, optional
+        For the thickness range of ``params.material``.
 
     Returns
     -------
-    pandas.DataFrame
-        A copy with ``force_handle_N`` corrected and ``force_handle_uncorrected_N`` added.
+    ControllerParams
+        With the rendered effects.
+    dict
+        ``rendered`` and ``measurement_only`` (effect names), ``measurement`` (``offset_N`` N,
+        ``gain`` 1, ``delay_s`` s; 0, 1, 0 when absent: apply them with
+        :func:`measured_handle_force_N`), ``warnings`` (list of str).
     """
-    t = sim["time_s"].to_numpy(float)
-    th = sim["theta_deg"].to_numpy(float)
-    aug = model.handle_force_N(t, th, thickness_mm, material, surrogate)
-    base = AugmentedModel({}, model.chain).handle_force_N(t, th, thickness_mm, material, surrogate)
-    out = sim.copy()
-    out["force_handle_uncorrected_N"] = sim["force_handle_N"]
-    out["force_handle_N"] = sim["force_handle_N"].to_numpy(float) + (aug - base)
-    return out
+    from dataclasses import replace
+
+    eff = model.effects
+    warn: list[str] = []
+    if (
+        params.tissue_scale != 1.0
+        or params.jaw_compliance_mm_per_N > 0
+        or params.backlash_deg > 0
+        or params.friction_rendered
+        or params.prony_g
+    ):
+        warn.append(
+            "the controller parameters already render instrument effects (an earlier "
+            "--augmented?): the model's replace them, and a thickness offset is added again; "
+            "start from the un-augmented parameters"
+        )
+
+    def nonneg(effect: str, key: str) -> float:
+        v = float(eff[effect][key])
+        if not (math.isfinite(v) and v >= 0):
+            warn.append(f"{effect}.{key} = {v!r} is outside the controller's bound >= 0: set to 0")
+            return 0.0
+        return v
+
+    new: dict[str, Any] = {"chain": model.chain}
+    if model.chain.spring_k_N_per_mm != params.spring_k_N_per_mm:
+        warn.append(
+            f"the model was fitted with a return spring of {model.chain.spring_k_N_per_mm:g} "
+            f"N/mm; the controller's {params.spring_k_N_per_mm:g} N/mm is kept"
+        )
+    if "thickness_error" in eff:
+        t = params.thickness_mm + float(eff["thickness_error"]["offset_mm"])
+        if surrogate is not None:
+            lo, hi = surrogate.thickness_range(params.material)
+            tc = min(max(t, lo), hi)
+            if tc != t:
+                warn.append(
+                    f"thickness {params.thickness_mm:g} + offset = {t:.4g} mm clamped into the "
+                    f"surrogate's range [{lo:g}, {hi:g}] mm"
+                )
+            t = tc
+        new["thickness_mm"] = t
+    if "tissue_stiffness_scale" in eff:
+        sc = float(eff["tissue_stiffness_scale"]["scale"])
+        if not (math.isfinite(sc) and sc > 0):
+            warn.append(f"tissue_stiffness_scale.scale = {sc!r} is not > 0: left at 1")
+            sc = 1.0
+        new["tissue_scale"] = sc
+    if "jaw_compliance" in eff:
+        new["jaw_compliance_mm_per_N"] = nonneg("jaw_compliance", "compliance_mm_per_N")
+    if "backlash" in eff:
+        new["backlash_deg"] = nonneg("backlash", "play_deg")
+    if "mechanism_friction" in eff:
+        new["friction_coulomb_N"] = nonneg("mechanism_friction", "coulomb_N")
+        new["friction_load_coefficient"] = nonneg("mechanism_friction", "load_coefficient")
+        new["friction_viscous_N_s_per_mm"] = nonneg("mechanism_friction", "viscous_N_s_per_mm")
+    if "tissue_viscoelasticity" in eff:
+        gs, taus = [], []
+        for spec, tau in zip(EFFECTS["tissue_viscoelasticity"].params, PRONY_TAUS_S):
+            g = nonneg("tissue_viscoelasticity", spec.name)
+            if g > 0:
+                gs.append(g)
+                taus.append(float(tau))
+        assert len(gs) <= MAX_PRONY_TERMS
+        new["prony_g"] = tuple(gs)
+        new["prony_tau_s"] = tuple(taus)
+    measurement = {"offset_N": 0.0, "gain": 1.0, "delay_s": 0.0}
+    if "sensor_offset_gain" in eff:
+        measurement["offset_N"] = float(eff["sensor_offset_gain"]["offset_N"])
+        measurement["gain"] = float(eff["sensor_offset_gain"]["gain"])
+    if "latency" in eff:
+        measurement["delay_s"] = nonneg("latency", "delay_s")
+    info = {
+        "rendered": [e for e in _ORDER if e in eff and e in RENDERED_EFFECTS],
+        "measurement_only": [e for e in _ORDER if e in eff and e in MEASUREMENT_EFFECTS],
+        "measurement": measurement,
+        "warnings": warn,
+    }
+    return replace(params, **new), info
+
+
+def measured_handle_force_N(
+    time_s: FloatArray, force_handle_N: FloatArray, measurement: dict[str, float]
+) -> FloatArray:
+    """What the force sensor of the augmented model would read: offset, gain and latency.
+
+    ``offset_N + gain F(t - delay_s)``, ``F`` interpolated linearly in time and held at its first
+    value before the first sample.
+
+    Parameters
+    ----------
+    time_s : ndarray
+        Sample times, s (increasing).
+    force_handle_N : ndarray
+        Handle force, N.
+    measurement : dict
+        ``offset_N`` (N), ``gain`` (1), ``delay_s`` (s), as returned by
+        :func:`controller_params_from_augmented`.
+
+    Returns
+    -------
+    ndarray
+        Measured handle force, N.
+    """
+    t = np.asarray(time_s, dtype=float)
+    f = np.asarray(force_handle_N, dtype=float)
+    d = float(measurement.get("delay_s", 0.0))
+    if d > 0:
+        f = np.interp(t - d, t, f)
+    return float(measurement.get("offset_N", 0.0)) + float(measurement.get("gain", 1.0)) * f
 
 
 # =============================================================================== output

@@ -41,6 +41,29 @@ Simulation check: :func:`simulate_hold` runs the real :class:`ImpedanceControlle
 sample rate against a continuous device + hand model (sub-stepped, Coulomb friction, encoder
 quantisation) and measures the energy the controller injects beyond the ideal static field, and
 the growth of the oscillation.
+
+Rendered instrument effects (``ControllerParams`` fields set from a ``grasprom diagnose``
+augmented model, :func:`grasprom.diagnosis.controller_params_from_augmented`)
+--------------------------------------------------------------------------------------------
+* ``tissue_scale`` scales the tissue force and stiffness everywhere (static map and ``K``).
+* ``jaw_compliance_mm_per_N`` ``C`` is in series with the coupling: the rendered jaw stiffness
+  is bounded by ``k_c,eff = 1/(1/k_c + C)``, which replaces ``k_c`` in the proxy and in ``k_eff``.
+* The Prony series raises the instantaneous jaw stiffness by
+  :func:`prony_stiffness_factor` ``= 1 + sum g_i 2/(1 + a_i)`` (``a_i = exp(-T/tau_i)``; the gain of
+  the discrete Prony filter at the Nyquist frequency, its largest, ``~ 1 + sum g_i`` for
+  ``tau_i >> T``); ``k_eff`` is multiplied by it, so the tuner ends with
+  ``k_c,eff x factor`` about where ``k_c`` alone would be.
+* The viscous friction ``b_v`` (N s/mm at the finger) is a virtual damping ``b_v L3^2 1e-3``
+  (N m s/rad) on the same filtered velocity as ``B``: the passivity condition uses
+  ``B_total = B + b_v L3^2 1e-3`` (:func:`virtual_damping_Nms_per_rad`), and the tuner picks the
+  best ``B_total >= b_v L3^2 1e-3`` (``B`` = the rest, >= 0).  Virtual damping is not free in a
+  sampled-data loop (``b > K T/2 + |B|``): at the 200 Hz cutoff 0.005 N s/mm already leaves no
+  passive stiffness (the tuner then lowers the cutoff), and from about 0.065 N s/mm none is left
+  at 1 kHz with the default device, which :func:`tune` reports as an error.
+* Coulomb and load-proportional friction, and the backlash, are not credited (they raise no
+  bound, unlike the device's own friction in Abbott-Okamura): the rendered Coulomb force opposes
+  the motion except while the finger speed crosses the direction threshold after a reversal.
+  The simulation check runs the step with all of them.
 """
 
 from __future__ import annotations
@@ -71,12 +94,14 @@ __all__ = [
     "max_passive_stiffness",
     "operating_points",
     "plot_tuning",
+    "prony_stiffness_factor",
     "rendered_stiffness",
     "required_damping",
     "simulate_hold",
     "static_handle_torque_Nm",
     "tune",
     "verify_by_simulation",
+    "virtual_damping_Nms_per_rad",
     "write_outputs",
     "zwidth_boundary",
 ]
@@ -186,18 +211,79 @@ class HandParams:
         return self.mass_kg * r2, self.damping_Ns_per_m * r2, self.stiffness_N_per_m * r2
 
 
+# --------------------------------------------------------------------------- augmentation
+def prony_stiffness_factor(params: ControllerParams) -> float:
+    """Instantaneous over relaxed jaw stiffness of the rendered Prony series (1).
+
+    ``1 + sum g_i 2 / (1 + a_i)`` with ``a_i = exp(-T / tau_i)``: the gain of the discrete
+    filter ``Fg -> Fg + sum g_i h_i`` of :meth:`ImpedanceController.step` at the Nyquist frequency,
+    its largest over frequency (``1 + sum g_i`` to ``O(T / tau_i)``); 1 without Prony terms.
+
+    Parameters
+    ----------
+    params : ControllerParams
+        ``prony_g`` (1), ``prony_tau_s`` (s) and ``sample_time_s`` (s).
+
+    Returns
+    -------
+    float
+    """
+    f = 1.0
+    for g, tau in zip(params.prony_g, params.prony_tau_s):
+        f += g * 2.0 / (1.0 + math.exp(-params.sample_time_s / tau))
+    return f
+
+
+def virtual_damping_Nms_per_rad(params: ControllerParams) -> float:
+    """Total virtual damping on the filtered velocity at the handle pivot, N m s/rad.
+
+    ``B + b_v L3^2 1e-3``: the controller's damping ``B`` plus the rendered viscous friction
+    ``b_v`` (N s/mm at the finger, ``L3`` in mm); ``B`` without viscous friction.
+
+    Parameters
+    ----------
+    params : ControllerParams
+
+    Returns
+    -------
+    float
+    """
+    bv = params.friction_viscous_N_s_per_mm
+    if bv == 0:
+        return params.damping_Nms_per_rad
+    L3 = params.chain_params.L3_mm
+    return params.damping_Nms_per_rad + bv * L3 * L3 * 1e-3
+
+
+def _augmented(params: ControllerParams) -> bool:
+    """Whether any rendered instrument effect is on."""
+    return bool(
+        params.tissue_scale != 1.0
+        or params.jaw_compliance_mm_per_N > 0
+        or params.backlash_deg > 0
+        or params.friction_rendered
+        or params.prony_g
+    )
+
+
 # --------------------------------------------------------------------------- static map
 def _proxy_gap(
-    s: Surrogate, gap: np.ndarray, t: float, material: str, kc: float, iters: int = 60
+    s: Surrogate,
+    gap: np.ndarray,
+    t: float,
+    material: str,
+    kc: float,
+    iters: int = 60,
+    scale: float = 1.0,
 ) -> np.ndarray:
-    """Converged proxy gap ``g_p >= g`` solving ``k_c (g_p - g) = F(g_p)`` (vectorised)."""
-    f0 = np.asarray(s.force(gap, t, material), dtype=float)
+    """Converged proxy gap ``g_p >= g`` solving ``k_c (g_p - g) = scale F(g_p)`` (vectorised)."""
+    f0 = scale * np.asarray(s.force(gap, t, material), dtype=float)
     lo = gap.copy()
     hi = gap + f0 / kc
     gp = hi.copy()
     for _ in range(iters):
-        f = np.asarray(s.force(gp, t, material), dtype=float)
-        k = np.asarray(s.stiffness(gp, t, material), dtype=float)
+        f = scale * np.asarray(s.force(gp, t, material), dtype=float)
+        k = scale * np.asarray(s.stiffness(gp, t, material), dtype=float)
         r = kc * (gp - gap) - f  # increasing in gp
         lo = np.where(r < 0, gp, lo)
         hi = np.where(r >= 0, gp, hi)
@@ -219,15 +305,18 @@ class OperatingPoints:
     theta_deg, gap_mm, proxy_gap_mm : ndarray
         Handle angle (deg), kinematic gap (mm), converged proxy gap (mm).
     force_jaw_N : ndarray
-        Rendered jaw force ``k_c (g_p - g)``, N.
+        Rendered (relaxed) jaw force ``k_c,eff (g_p - g)``, N.
     tissue_stiffness_N_per_mm : ndarray
-        Surrogate stiffness at the kinematic gap (raw tissue), N/mm.
+        Surrogate stiffness (times ``tissue_scale``) at the kinematic gap (raw tissue), N/mm.
     jaw_stiffness_N_per_mm : ndarray
-        Rendered jaw stiffness ``k_c k_t(g_p) / (k_c + k_t(g_p))``, N/mm.
+        Rendered instantaneous jaw stiffness
+        ``P k_c,eff k_t(g_p) / (k_c,eff + k_t(g_p))``, N/mm (``P`` the
+        :func:`prony_stiffness_factor`; ``k_c,eff = k_c`` without jaw compliance).
     K_Nm_per_rad : ndarray
         Rendered stiffness at the handle pivot (chain + coupling), N m/rad.
     K_raw_Nm_per_rad : ndarray
-        Stiffness the raw tissue (no coupling) would need at the handle pivot, N m/rad.
+        Stiffness the raw tissue (no coupling, no jaw compliance; scale and Prony factor
+        included) would need at the handle pivot, N m/rad.
     """
 
     material: str
@@ -279,15 +368,17 @@ def rendered_stiffness(
         lo, hi = kin.theta_range_deg(chain)
         theta_deg = np.linspace(lo, hi, n_theta)
     th = np.asarray(theta_deg, dtype=float)
-    t, m, kc = params.thickness_mm, params.material, params.coupling_stiffness_N_per_mm
+    t, m, kc = params.thickness_mm, params.material, params.coupling_effective_N_per_mm
+    sc = params.tissue_scale
+    pf = prony_stiffness_factor(params)
     g = np.asarray(kin.gap_mm(th, chain), dtype=float)
-    f_raw = np.asarray(s.force(g, t, m), dtype=float)
-    kt_raw = np.asarray(s.stiffness(g, t, m), dtype=float)
-    gp = _proxy_gap(s, g, t, m, kc)
-    kt_p = np.asarray(s.stiffness(gp, t, m), dtype=float)
+    f_raw = sc * np.asarray(s.force(g, t, m), dtype=float)
+    kt_raw = sc * np.asarray(s.stiffness(g, t, m), dtype=float)
+    gp = _proxy_gap(s, g, t, m, kc, scale=sc)
+    kt_p = sc * np.asarray(s.stiffness(gp, t, m), dtype=float)
     contact = f_raw > 0
     fg = np.where(contact, kc * (gp - g), 0.0)
-    kjaw = np.where(contact, kc * kt_p / (kc + kt_p), 0.0)
+    kjaw = np.where(contact, pf * (kc * kt_p / (kc + kt_p)), 0.0)
     return OperatingPoints(
         material=m,
         thickness_mm=float(t),
@@ -298,7 +389,7 @@ def rendered_stiffness(
         tissue_stiffness_N_per_mm=kt_raw,
         jaw_stiffness_N_per_mm=kjaw,
         K_Nm_per_rad=_handle_K(fg, kjaw, th, chain, params.render_spring),
-        K_raw_Nm_per_rad=_handle_K(f_raw, kt_raw, th, chain, params.render_spring),
+        K_raw_Nm_per_rad=_handle_K(f_raw, pf * kt_raw, th, chain, params.render_spring),
     )
 
 
@@ -307,15 +398,17 @@ def static_handle_torque_Nm(
 ) -> np.ndarray:
     """Static device torque at the handle pivot ``Fi L3`` (N m, opening) with converged proxy.
 
-    The ideal (continuous, undamped) field the controller approximates; no saturation.
+    The ideal (continuous, undamped) field the controller approximates; no saturation.  With
+    rendered instrument effects: tissue scale and jaw compliance included, the Prony series
+    relaxed, no friction, no backlash (the chain angle = the handle angle).
     """
     chain = params.chain_params
     th = np.degrees(np.clip(np.asarray(theta_rad, dtype=float),
                             *np.radians(kin.theta_range_deg(chain))))
     g = np.asarray(kin.gap_mm(th, chain), dtype=float)
-    gp = _proxy_gap(s, g, params.thickness_mm, params.material,
-                    params.coupling_stiffness_N_per_mm)
-    fg = params.coupling_stiffness_N_per_mm * (gp - g)
+    kc = params.coupling_effective_N_per_mm
+    gp = _proxy_gap(s, g, params.thickness_mm, params.material, kc, scale=params.tissue_scale)
+    fg = kc * (gp - g)
     fi = np.asarray(kin.handle_force_N(fg, th, chain), dtype=float)
     if not params.render_spring:
         fi = fi - np.asarray(kin.spring_handle_force_N(th, chain), dtype=float)
@@ -545,16 +638,23 @@ def _max_K(points: list[OperatingPoints]) -> tuple[float, float, OperatingPoints
 
 
 def _choose_filter(
-    b: float, T: float, delay: int, safety: float, cutoffs: Sequence[float], n_B: int = 61
+    b: float,
+    T: float,
+    delay: int,
+    safety: float,
+    cutoffs: Sequence[float],
+    n_B: int = 61,
+    B_min: float = 0.0,
 ) -> tuple[float, float, float]:
-    """(B, f_c, K_allowed) maximising the passive stiffness for ``b / safety``."""
+    """(B, f_c, K_allowed) maximising the passive stiffness for ``b / safety``, ``B >= B_min``."""
     beff = b / safety
     best = (0.0, float(cutoffs[0]), -1.0)
     for fc in cutoffs:
         for B in np.linspace(0.0, 2.0 * beff, n_B):
-            k = max_passive_stiffness(beff, float(B), T, fc, delay)
+            Bt = max(float(B), B_min)
+            k = max_passive_stiffness(beff, Bt, T, fc, delay)
             if k > best[2] * (1 + 1e-9):
-                best = (float(B), float(fc), k)
+                best = (Bt, float(fc), k)
     return best
 
 
@@ -585,6 +685,12 @@ def tune(
     2. ``k_c`` is the largest (2 significant digits, rounded down) for which the largest
        rendered stiffness over theta x thickness x material stays ``<= K_pass``, i.e. the
        passivity margin ``b / b_required >= safety`` at every operating point.
+
+    Rendered instrument effects in ``base`` (tissue scale, jaw compliance, Prony series,
+    friction; see the module docstring) are kept and accounted for: ``K`` uses the scaled tissue,
+    ``k_c,eff`` and the Prony factor; the viscous friction counts as virtual damping (``B`` is
+    chosen for the total, the friction's share taken off); Coulomb friction and backlash are not
+    credited.
     3. Report: raw tissue (no coupling) stiffness and where it is not renderable, with the
        sample rate / damping it would need; Abbott-Okamura and Colgate closed-form figures;
        closed-loop poles and margins (python-control) at the stiffest point, with and without
@@ -615,6 +721,11 @@ def tune(
     Returns
     -------
     TuningResult
+
+    Raises
+    ------
+    ValueError
+        Bad arguments, or a rendered viscous friction that leaves no passive stiffness.
     """
     base = base or ControllerParams()
     device = device or DeviceParams()
@@ -631,8 +742,19 @@ def tune(
     if not cutoffs:
         raise ValueError(f"no velocity cutoff below the Nyquist frequency {nyq:g} Hz")
     b, d = device.damping_Nms_per_rad, device.delay_samples
-    B, fc, k_pass = _choose_filter(b, T, d, safety, cutoffs)
-    base = replace(base, damping_Nms_per_rad=B, velocity_cutoff_Hz=fc)
+    B_visc = virtual_damping_Nms_per_rad(replace(base, damping_Nms_per_rad=0.0))
+    B, fc, k_pass = _choose_filter(b, T, d, safety, cutoffs, B_min=B_visc)
+    if k_pass <= 0:
+        raise ValueError(
+            f"the rendered viscous friction {base.friction_viscous_N_s_per_mm:g} N s/mm (virtual "
+            f"damping {B_visc:.3g} N m s/rad at the handle pivot) cannot be rendered passively "
+            f"by this device (b = {b:g} N m s/rad, safety {safety:g}) at {1 / T:g} Hz with any "
+            f"velocity cutoff in {', '.join(f'{c:g}' for c in cutoffs)} Hz; lower "
+            "friction_viscous_N_s_per_mm, raise the rate or the device damping"
+        )
+    # B is the total virtual damping; the controller's share is what the friction leaves
+    base = replace(base, damping_Nms_per_rad=B - B_visc if B > B_visc else 0.0,
+                   velocity_cutoff_Hz=fc)
 
     def worst(kc: float, n: int = max(n_theta // 4, 12)) -> float:
         pts = operating_points(s, replace(base, coupling_stiffness_N_per_mm=kc),
@@ -642,6 +764,13 @@ def tune(
 
     beff = b / safety
     lo, hi = 1e-3, 1.0
+    if worst(lo) > beff:
+        raise ValueError(
+            f"no coupling stiffness is passive: even k_c = {lo:g} N/mm (spring, chain and "
+            f"rendered effects alone) needs b >= {worst(lo) * safety:.3g} N m s/rad, the device "
+            f"has {b:g} (safety {safety:g}, virtual damping {B:.3g} N m s/rad incl. "
+            f"{B_visc:.3g} of viscous friction)"
+        )
     while worst(hi) <= beff and hi < 1e5:
         lo, hi = hi, hi * 4.0
     for _ in range(30):
@@ -671,9 +800,40 @@ def tune(
         "required_damping_Nms_per_rad": float(required_damping(k_in, B, T, fc, d)) * safety,
         "required_rate_Hz_B0": k_in * c / T / b * safety,
     }
+    if _augmented(params):
+        summary["augmentation"] = _augmentation_summary(params, B_visc)
     if verify:
         summary["simulation"] = verify_by_simulation(s, params, device, hand, summary)
     return TuningResult(params=params, device=device, hand=hand, points=pts, summary=summary)
+
+
+def _augmentation_summary(params: ControllerParams, B_visc: float) -> dict[str, Any]:
+    kc = params.coupling_stiffness_N_per_mm
+    return {
+        "tissue_scale": params.tissue_scale,
+        "jaw_compliance_mm_per_N": params.jaw_compliance_mm_per_N,
+        "coupling_stiffness_N_per_mm": kc,
+        "coupling_effective_N_per_mm": params.coupling_effective_N_per_mm,
+        "prony_g": list(params.prony_g),
+        "prony_tau_s": list(params.prony_tau_s),
+        "prony_stiffness_factor": prony_stiffness_factor(params),
+        "rendered_jaw_stiffness_bound_N_per_mm": params.coupling_effective_N_per_mm
+        * prony_stiffness_factor(params),
+        "backlash_deg": params.backlash_deg,
+        "friction_coulomb_N": params.friction_coulomb_N,
+        "friction_load_coefficient": params.friction_load_coefficient,
+        "friction_viscous_N_s_per_mm": params.friction_viscous_N_s_per_mm,
+        "friction_virtual_damping_Nms_per_rad": B_visc,
+        "virtual_damping_total_Nms_per_rad": virtual_damping_Nms_per_rad(params),
+        "notes": [
+            "jaw stiffness bounded by k_c,eff = 1/(1/k_c + C) times the Prony factor "
+            "1 + sum g_i 2/(1 + exp(-T/tau_i)) (instantaneous stiffness)",
+            "viscous friction = virtual damping b_v L3^2 on the filtered velocity: counted in the "
+            "passivity condition (B_total = B + b_v L3^2), B reduced by it",
+            "Coulomb/load friction and backlash not credited (no higher stiffness allowed for "
+            "them); the simulation check runs with them",
+        ],
+    }
 
 
 def _summarise(
@@ -685,9 +845,10 @@ def _summarise(
     safety: float,
     k_pass: float,
 ) -> dict[str, Any]:
-    T, B, fc = params.sample_time_s, params.damping_Nms_per_rad, params.velocity_cutoff_Hz
+    T, B, fc = params.sample_time_s, virtual_damping_Nms_per_rad(params), params.velocity_cutoff_Hz
     b, d = device.damping_Nms_per_rad, device.delay_samples
     L3 = params.chain_params.L3_mm
+    kc_eff = params.coupling_effective_N_per_mm
     q = ImpedanceController(replace(params, material=pts[0].material,
                                     thickness_mm=pts[0].thickness_mm), s).encoder_quantum_rad
     kmax, kmin, op, i = _max_K(pts)
@@ -708,9 +869,8 @@ def _summarise(
             })
     active = [
         {"material": o.material, "thickness_mm": o.thickness_mm,
-         "theta_deg_below": float(np.max(o.theta_deg[o.tissue_stiffness_N_per_mm >
-                                                    params.coupling_stiffness_N_per_mm]))}
-        for o in pts if np.any(o.tissue_stiffness_N_per_mm > params.coupling_stiffness_N_per_mm)
+         "theta_deg_below": float(np.max(o.theta_deg[o.tissue_stiffness_N_per_mm > kc_eff]))}
+        for o in pts if np.any(o.tissue_stiffness_N_per_mm > kc_eff)
     ]
     with_hand = closed_loop(kmax, B, fc, T, device, hand, L3)
     free = closed_loop(kmax, B, fc, T, device, None, L3)
@@ -728,7 +888,7 @@ def _summarise(
         "encoder_quantum_rad": q,
         "chosen": {
             "coupling_stiffness_N_per_mm": params.coupling_stiffness_N_per_mm,
-            "damping_Nms_per_rad": B,
+            "damping_Nms_per_rad": params.damping_Nms_per_rad,
             "velocity_cutoff_Hz": fc,
             "torque_limit_Nm": params.torque_limit_Nm,
         },
@@ -790,7 +950,8 @@ def verify_by_simulation(
         sim = simulate_hold(s, p, device, hand, theta_start_offset_deg=1.0)
         op = rendered_stiffness(s, p, np.array([sim["theta_hold_deg"]]))
         K = float(op.K_Nm_per_rad[0])
-        cl = closed_loop(K, p.damping_Nms_per_rad, p.velocity_cutoff_Hz, p.sample_time_s,
+        Bt = virtual_damping_Nms_per_rad(p)
+        cl = closed_loop(K, Bt, p.velocity_cutoff_Hz, p.sample_time_s,
                          device, hand, p.chain_params.L3_mm)
         out[name] = {
             "coupling_stiffness_N_per_mm": p.coupling_stiffness_N_per_mm,
@@ -799,8 +960,7 @@ def verify_by_simulation(
             "theta_hold_deg": sim["theta_hold_deg"],
             "K_Nm_per_rad": K,
             "required_damping_Nms_per_rad": float(required_damping(
-                K, p.damping_Nms_per_rad, p.sample_time_s, p.velocity_cutoff_Hz,
-                device.delay_samples)),
+                K, Bt, p.sample_time_s, p.velocity_cutoff_Hz, device.delay_samples)),
             "net_generated_J": sim["net_generated_J"],
             "controller_excess_J": sim["controller_excess_J"],
             "amp_first_rad": sim["amp_first_rad"],
@@ -877,6 +1037,28 @@ def format_report(sm: dict[str, Any]) -> str:
                 f"{min(ths):.2f}-{max(ths):.2f} deg ({len(ths)} thicknesses); the coupling "
                 f"bounds it there"
             )
+    au = sm.get("augmentation")
+    if au and "coupling_effective_N_per_mm" in au:
+        lines += [
+            f"rendered instrument effects: tissue scale {au['tissue_scale']:g}, jaw compliance "
+            f"{au['jaw_compliance_mm_per_N']:g} mm/N -> k_c,eff = "
+            f"{au['coupling_effective_N_per_mm']:.4g} N/mm; Prony factor "
+            f"{au['prony_stiffness_factor']:.4g} -> jaw stiffness bound "
+            f"{au['rendered_jaw_stiffness_bound_N_per_mm']:.4g} N/mm",
+            f"  viscous friction {au['friction_viscous_N_s_per_mm']:g} N s/mm = virtual damping "
+            f"{au['friction_virtual_damping_Nms_per_rad']:.4g} N m s/rad, counted: total "
+            f"{au['virtual_damping_total_Nms_per_rad']:.4g} N m s/rad (B "
+            f"{c['damping_Nms_per_rad']:.4g} + friction)",
+            f"  Coulomb {au['friction_coulomb_N']:g} N, load coefficient "
+            f"{au['friction_load_coefficient']:g}, backlash {au['backlash_deg']:g} deg: not "
+            "credited (only add dissipation / play; in the simulation check)",
+        ]
+    if au and "file" in au:
+        lines.append(
+            f"augmented model {au['file']} (sha256 {au['sha256'][:12]}): rendered "
+            f"{', '.join(au['rendered']) or 'none'}; measurement-only (not rendered) "
+            f"{', '.join(au['measurement_only']) or 'none'}"
+        )
     for name, v in sm.get("simulation", {}).items():
         lines.append(
             f"simulation {name} (k_c = {v['coupling_stiffness_N_per_mm']:g} N/mm, "
@@ -1051,7 +1233,7 @@ def plot_tuning(result: TuningResult, out_dir: str | Path) -> dict[str, Path]:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     sm, p, dev = result.summary, result.params, result.device
-    T, B, fc = p.sample_time_s, p.damping_Nms_per_rad, p.velocity_cutoff_Hz
+    T, B, fc = p.sample_time_s, virtual_damping_Nms_per_rad(p), p.velocity_cutoff_Hz
     files: dict[str, Path] = {}
     k_pass = sm["passive_stiffness_Nm_per_rad"]
 

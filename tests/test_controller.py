@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import subprocess
 import sys
@@ -135,10 +136,46 @@ def test_bad_parameters_name_the_parameter(surrogate):
         ImpedanceController(ControllerParams(thickness_mm=3.0), surrogate)
 
 
+@pytest.mark.parametrize(
+    "kw,match",
+    [
+        ({"friction_coulomb_N": -0.1}, "friction_coulomb_N must be finite and >= 0"),
+        ({"friction_load_coefficient": float("nan")}, "friction_load_coefficient"),
+        ({"friction_viscous_N_s_per_mm": -1e-3}, "friction_viscous_N_s_per_mm"),
+        ({"friction_velocity_threshold_mm_per_s": 0.0}, "friction_velocity_threshold"),
+        ({"tissue_scale": 0.0}, "tissue_scale must be finite and > 0"),
+        ({"jaw_compliance_mm_per_N": -0.01}, "jaw_compliance_mm_per_N"),
+        ({"backlash_deg": float("inf")}, "backlash_deg"),
+        ({"prony_g": (0.3, 0.2), "prony_tau_s": (0.2,)}, "same length"),
+        ({"prony_g": (0.1,) * 5, "prony_tau_s": (1.0,) * 5}, "at most 4 Prony terms, got 5"),
+        ({"prony_g": (0.1, -0.2), "prony_tau_s": (1.0, 2.0)}, r"prony_g\[1\] must be"),
+        ({"prony_g": (0.1,), "prony_tau_s": (0.0,)}, r"prony_tau_s\[0\] must be finite and > 0"),
+        ({"prony_g": "0.3", "prony_tau_s": "1"}, "list of numbers"),
+    ],
+)
+def test_bad_augmentation_parameters(kw, match):
+    with pytest.raises(ValueError, match=match):
+        ControllerParams(**kw)
+
+
 def test_params_round_trip(tmp_path):
     p = ControllerParams(damping_Nms_per_rad=0.003, material="le")
     save_params(p, tmp_path / "c.json", extra={"tuning": {"x": 1}})
     assert load_params(tmp_path / "c.json") == p
+    aug = ControllerParams(tissue_scale=1.3, jaw_compliance_mm_per_N=0.01, backlash_deg=0.2,
+                           friction_coulomb_N=0.5, friction_load_coefficient=0.05,
+                           friction_viscous_N_s_per_mm=0.002, prony_g=[0.3, 0.2],
+                           prony_tau_s=[0.2, 1.0])  # fmt: skip
+    assert aug.prony_g == (0.3, 0.2) and aug.prony_tau_s == (0.2, 1.0)  # lists -> tuples
+    save_params(aug, tmp_path / "a.json")
+    d = json.loads((tmp_path / "a.json").read_text())
+    assert d["prony_g"] == [0.3, 0.2] and d["tissue_scale"] == 1.3
+    back = load_params(tmp_path / "a.json")
+    assert back == aug and hash(back) == hash(aug)
+    d["prony_tau_s"] = [0.2]
+    (tmp_path / "b.json").write_text(json.dumps(d))
+    with pytest.raises(ValueError, match="b.json: .*same length"):
+        load_params(tmp_path / "b.json")
     (tmp_path / "bad.json").write_text('{"foo": 1}')
     with pytest.raises(ValueError, match="bad.json: unknown key"):
         load_params(tmp_path / "bad.json")

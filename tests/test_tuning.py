@@ -241,3 +241,118 @@ def test_bad_parameters():
     assert kh == pytest.approx(300.0 * 0.0541**2)
     assert bh == pytest.approx(2.0 * 0.0541**2)
     assert jh == pytest.approx(0.01 * 0.0541**2)
+
+
+# ------------------------------------------------------------------ rendered instrument effects
+def test_augmentation_in_the_rendered_stiffness(sur):
+    """Prony raises the jaw stiffness by the Nyquist gain of the Prony filter, the compliance
+    puts k_c in series (k_c,eff), the scale multiplies the tissue."""
+    p0 = ControllerParams(material="le", thickness_mm=2.0)
+    ths = np.linspace(0.0, 22.0, 45)
+    op0 = tn.rendered_stiffness(sur, p0, ths)
+    pp = replace(p0, prony_g=(0.6, 0.4), prony_tau_s=(0.2, 1.0))
+    pf = tn.prony_stiffness_factor(pp)
+    a1, a2 = math.exp(-T / 0.2), math.exp(-T / 1.0)
+    assert pf == pytest.approx(1 + 0.6 * 2 / (1 + a1) + 0.4 * 2 / (1 + a2), rel=1e-15)
+    assert pf == pytest.approx(2.0, abs=2e-3)
+    opp = tn.rendered_stiffness(sur, pp, ths)
+    assert np.array_equal(opp.force_jaw_N, op0.force_jaw_N)  # relaxed static map unchanged
+    assert opp.jaw_stiffness_N_per_mm == pytest.approx(pf * op0.jaw_stiffness_N_per_mm, rel=1e-12)
+    assert opp.K_Nm_per_rad.max() > 1.8 * op0.K_Nm_per_rad.max()
+    pc = replace(p0, coupling_stiffness_N_per_mm=2.0, jaw_compliance_mm_per_N=0.5)
+    assert pc.coupling_effective_N_per_mm == pytest.approx(1.0)
+    opc = tn.rendered_stiffness(sur, pc, ths)
+    assert np.all(opc.jaw_stiffness_N_per_mm <= 1.0 + 1e-12)
+    op1 = tn.rendered_stiffness(sur, replace(p0, coupling_stiffness_N_per_mm=1.0), ths)
+    assert opc.K_Nm_per_rad == pytest.approx(op1.K_Nm_per_rad, rel=1e-12)  # = a 1 N/mm coupling
+    ps = replace(p0, tissue_scale=1.5)
+    ops = tn.rendered_stiffness(sur, ps, ths)
+    assert ops.tissue_stiffness_N_per_mm == pytest.approx(1.5 * op0.tissue_stiffness_N_per_mm,
+                                                          rel=1e-15)  # fmt: skip
+
+
+def test_tune_with_prony_halves_the_coupling(sur):
+    """sum g = 1 doubles the instantaneous stiffness: the tuned k_c about halves, and the
+    un-adjusted k_c would break the passivity margin."""
+    kw = dict(materials=["le"], thicknesses=[2.0], verify=False, n_theta=45)
+    r0 = tn.tune(sur, ControllerParams(), **kw)
+    rp = tn.tune(sur, ControllerParams(prony_g=(1.0,), prony_tau_s=(1.0,)), **kw)
+    kc0 = r0.params.coupling_stiffness_N_per_mm
+    kcp = rp.params.coupling_stiffness_N_per_mm
+    pf = tn.prony_stiffness_factor(rp.params)
+    assert kc0 == pytest.approx(0.95)
+    assert 0.45 <= kcp / kc0 <= 0.56  # measured 0.50 / 0.95 = 0.53
+    assert kcp * pf == pytest.approx(kc0, rel=0.06)
+    sm = rp.summary
+    assert sm["passivity_margin"] >= sm["safety_factor"] * (1 - 1e-6)
+    assert sm["augmentation"]["prony_stiffness_factor"] == pytest.approx(pf)
+    # the Prony-rendering controller at the un-adjusted k_c renders beyond the passive bound
+    bad = replace(rp.params, coupling_stiffness_N_per_mm=kc0)
+    K = max(float(o.K_Nm_per_rad.max()) for o in tn.operating_points(sur, bad, [2.0], ["le"], 45))
+    p = rp.params
+    assert tn.required_damping(K, p.damping_Nms_per_rad, T, p.velocity_cutoff_Hz, 1) * sm[
+        "safety_factor"] > rp.device.damping_Nms_per_rad
+
+
+def test_tune_counts_viscous_friction_as_virtual_damping(sur):
+    kw = dict(materials=["le"], thicknesses=[2.0], verify=False, n_theta=45)
+    L3 = ControllerParams().chain_params.L3_mm
+    bv = 0.002  # N s/mm at the finger = 5.9e-3 N m s/rad at the pivot, 3x the tuned B
+    r = tn.tune(sur, ControllerParams(friction_viscous_N_s_per_mm=bv), **kw)
+    p = r.params
+    Bv = bv * L3 * L3 * 1e-3
+    assert tn.virtual_damping_Nms_per_rad(p) == pytest.approx(p.damping_Nms_per_rad + Bv)
+    assert p.damping_Nms_per_rad == 0.0  # the friction alone exceeds the best B
+    # the passivity check used the total: margin >= safety with B_total
+    Kmax = r.summary["max_rendered_K_Nm_per_rad"]
+    b_req = tn.required_damping(Kmax, p.damping_Nms_per_rad + Bv, T, p.velocity_cutoff_Hz, 1)
+    assert b_req * r.summary["safety_factor"] <= r.device.damping_Nms_per_rad * (1 + 1e-9)
+    assert r.summary["required_damping_Nms_per_rad"] == pytest.approx(b_req, rel=1e-9)
+    # ignoring it: the plain tuning (the defaults: k_c 0.95, B 1.87e-3, 200 Hz) plus this
+    # friction needs more damping than the device has
+    d0 = ControllerParams(material="le", thickness_mm=2.0)
+    K0 = float(tn.rendered_stiffness(sur, d0, n_theta=45).K_Nm_per_rad.max())
+    assert tn.required_damping(K0, d0.damping_Nms_per_rad + Bv, T, 200.0, 1) > (
+        r.device.damping_Nms_per_rad
+    )
+    assert "counted" in r.report()
+    with pytest.raises(ValueError, match="cannot be rendered passively"):
+        tn.tune(sur, ControllerParams(friction_viscous_N_s_per_mm=0.5), **kw)
+    # a device that cannot even render the spring: an error, not an endless k_c search
+    with pytest.raises(ValueError, match="no coupling stiffness is passive"):
+        tn.tune(sur, ControllerParams(), tn.DeviceParams(damping_Nms_per_rad=1e-5), **kw)
+
+
+def test_cli_tune_augmented(sur, tmp_path, capsys):
+    sj = sur.save(tmp_path / "sur.json")
+    aug = {
+        "format": "grasprom-augmented-model",
+        "format_version": 1,
+        "chain": {},
+        "effects": [
+            {"name": "tissue_viscoelasticity",
+             "params": {"g_0.03s": 0.0, "g_0.2s": 0.0, "g_1s": 1.0, "g_5s": 0.0}},
+            {"name": "mechanism_friction",
+             "params": {"coulomb_N": 0.5, "load_coefficient": 0.02, "viscous_N_s_per_mm": 0.0}},
+            {"name": "latency", "params": {"delay_s": 0.02}},
+        ],
+    }  # fmt: skip
+    (tmp_path / "aug.json").write_text(json.dumps(aug))
+    args = ["tune", "--surrogate", str(sj), "--material", "le", "--thickness", "2.0", "--no-plots"]
+    assert main(args + ["--out", str(tmp_path / "plain")]) == 0
+    assert main(args + ["--out", str(tmp_path / "aug"), "--augmented",
+                        str(tmp_path / "aug.json")]) == 0  # fmt: skip
+    text = capsys.readouterr().out
+    assert "rendered tissue_viscoelasticity, mechanism_friction" in text
+    assert "measurement-only, not rendered latency" in text
+    assert "Prony factor 2" in text and "not credited" in text
+    p0 = load_params(tmp_path / "plain" / "controller.json")
+    pa = load_params(tmp_path / "aug" / "controller.json")
+    assert pa.prony_g == (1.0,) and pa.prony_tau_s == (1.0,)
+    assert pa.friction_coulomb_N == 0.5 and pa.friction_load_coefficient == 0.02
+    assert 0.45 <= pa.coupling_stiffness_N_per_mm / p0.coupling_stiffness_N_per_mm <= 0.56
+    d = json.loads((tmp_path / "aug" / "controller.json").read_text())
+    au = d["tuning"]["augmentation"]
+    assert au["file"] == str(tmp_path / "aug.json") and len(au["sha256"]) == 64
+    assert au["measurement"]["delay_s"] == 0.02
+    assert d["tuning"]["simulation"]["chosen"]["growing"] is False
