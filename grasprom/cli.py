@@ -225,6 +225,13 @@ def _add_simulate_parser(sub) -> None:
     m.add_argument("--thickness", type=float, default=None, metavar="MM", help="wall thickness")
     m.add_argument("--material", default=None, help="mr, nh or le")
     m.add_argument("--controller", default=None, metavar="JSON", help="controller parameters")
+    m.add_argument(
+        "--augmented",
+        default=None,
+        metavar="JSON",
+        help="augmented model of 'grasprom diagnose': render its instrument effects; sensor "
+        "offset/gain and latency go to a column force_handle_measured_N",
+    )
     _add_surrogate_source(m)
     m.add_argument("--out", required=True, metavar="CSV", help="simulation output CSV")
 
@@ -261,6 +268,40 @@ def resolve_sweep_dir(directory: str) -> Path:
     return path
 
 
+def _augment_params(cmd: str, path: str, params, sur) -> tuple[object, dict]:
+    """Load ``--augmented`` and map it onto ``params``; prints what is rendered (stdout) and
+    the mapping's warnings (stderr).  Returns the new parameters and the mapping info with the
+    file and its sha256."""
+    import hashlib
+
+    from grasprom.diagnosis import controller_params_from_augmented, load_augmented
+
+    model = load_augmented(path)
+    params, info = controller_params_from_augmented(params, model, sur)
+    info = {"file": str(path), "sha256": hashlib.sha256(Path(path).read_bytes()).hexdigest(),
+            **info}  # fmt: skip
+    fe_hash = (model.meta.get("surrogate") or {}).get("fe_hash")
+    if fe_hash and getattr(sur, "fe_hash", None) and fe_hash != sur.fe_hash:
+        info["warnings"].append(
+            f"the model was fitted with another surrogate (fe_hash {fe_hash[:12]}, this one "
+            f"{sur.fe_hash[:12]})"
+        )
+    for w in info["warnings"]:
+        print(f"grasprom {cmd}: warning: {w}", file=sys.stderr)
+    m = info["measurement"]
+    print(
+        f"grasprom {cmd}: augmented model {path} (sha256 {info['sha256'][:12]}): rendered "
+        f"{', '.join(info['rendered']) or 'none'}; measurement-only, not rendered "
+        f"{', '.join(info['measurement_only']) or 'none'}"
+        + (
+            f" (offset {m['offset_N']:.4g} N, gain {m['gain']:.4g}, delay {m['delay_s']:.4g} s)"
+            if info["measurement_only"]
+            else ""
+        )
+    )
+    return params, info
+
+
 def _cmd_simulate(args: argparse.Namespace) -> int:
     import dataclasses
     import os
@@ -283,7 +324,16 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
             raise ValueError(f"{args.trajectory}: cannot read trajectory ({exc})") from None
         sur = load_surrogate(args.surrogate, args.fe)
+        aug = None
+        if args.augmented:
+            params, aug = _augment_params("simulate", args.augmented, params, sur)
         out = simulate(traj, params, sur, source=args.trajectory)
+        if aug and aug["measurement_only"]:
+            from grasprom.diagnosis import measured_handle_force_N
+
+            out["force_handle_measured_N"] = measured_handle_force_N(
+                out["time_s"].to_numpy(), out["force_handle_N"].to_numpy(), aug["measurement"]
+            )
         dest = Path(args.out)
         fd, tmp = tempfile.mkstemp(dir=dest.parent if str(dest.parent) else ".", suffix=".tmp")
         os.close(fd)
@@ -433,6 +483,13 @@ def _add_tune_parser(sub) -> None:
         "--controller", default=None, metavar="JSON", help="starting controller parameters"
     )
     t.add_argument(
+        "--augmented",
+        default=None,
+        metavar="JSON",
+        help="augmented model of 'grasprom diagnose': tune with its instrument effects rendered "
+        "(kept in controller.json)",
+    )
+    t.add_argument(
         "--safety", type=float, default=1.25, help="required b / b_required (default 1.25)"
     )
     t.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
@@ -465,7 +522,12 @@ def _cmd_tune(args: argparse.Namespace) -> int:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)
             sur = load_surrogate(args.surrogate, args.fe)
+        aug = None
+        if args.augmented:
+            base, aug = _augment_params("tune", args.augmented, base, sur)
         result = tune(sur, base, thicknesses=thick, materials=mats, safety=args.safety)
+        if aug:
+            result.summary.setdefault("augmentation", {}).update(aug)
         files = write_outputs(result, args.out, plots=not args.no_plots)
     except (OSError, ValueError, SurrogateFileError) as exc:
         return _error("tune", exc)
@@ -488,6 +550,7 @@ def _add_export_parser(sub) -> None:
     f.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (default 2)")
     _add_surrogate_source(f)
     f.add_argument("--params", default=None, metavar="JSON", help="controller parameters")
+    _add_augmented_export(f)
     a = esub.add_parser(
         "arduino",
         help="ATmega328P (Arduino Uno) package: PROGMEM tables, core, sketch, Makefile",
@@ -507,6 +570,18 @@ def _add_export_parser(sub) -> None:
     a.add_argument(
         "--float", dest="fixed_point", action="store_false", help="float build instead of Q-format"
     )
+    _add_augmented_export(a)
+
+
+def _add_augmented_export(p) -> None:
+    p.add_argument(
+        "--augmented",
+        default=None,
+        metavar="JSON",
+        help="augmented model of 'grasprom diagnose': render its instrument effects (tissue "
+        "scale, thickness, jaw compliance, backlash, friction, viscoelasticity) on top of "
+        "--params",
+    )
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
@@ -515,6 +590,9 @@ def _cmd_export(args: argparse.Namespace) -> int:
     try:
         params = load_params(args.params) if args.params else ControllerParams()
         sur = load_surrogate(args.surrogate, args.fe)
+        if args.augmented:
+            params, _ = _augment_params(f"export {args.export_command}", args.augmented, params,
+                                        sur)  # fmt: skip
         if args.export_command == "arduino":
             from grasprom.arduino import export_main
 
