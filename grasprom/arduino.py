@@ -87,7 +87,12 @@ _OUT_DTYPE = np.dtype(
 
 # --------------------------------------------------------------------------- reference
 def coupled_jaw_force(
-    surrogate: Surrogate, gap_mm: NDArray, thickness_mm: float, material: str, kc: float
+    surrogate: Surrogate,
+    gap_mm: NDArray,
+    thickness_mm: float,
+    material: str,
+    kc: float,
+    scale: float = 1.0,
 ) -> tuple[NDArray, NDArray]:
     """Jaw force through the virtual coupling, proxy solved to convergence (vectorised).
 
@@ -103,7 +108,9 @@ def coupled_jaw_force(
     thickness_mm : float
     material : str
     kc : float
-        Coupling stiffness (N/mm).
+        Coupling stiffness (N/mm; in series with a jaw compliance: the effective one).
+    scale : float
+        Factor on the tissue force (``ControllerParams.tissue_scale``).
 
     Returns
     -------
@@ -111,11 +118,11 @@ def coupled_jaw_force(
         Rendered jaw force ``kc (g_p - g)`` (N) and the proxy gap ``g_p`` (mm).
     """
     g = np.asarray(gap_mm, dtype=float)
-    f = surrogate.force(g, thickness_mm, material)
+    f = scale * surrogate.force(g, thickness_mm, material)
     lo, hi = g.copy(), g + f / kc
     for _ in range(64):
         mid = 0.5 * (lo + hi)
-        r = kc * (mid - g) - surrogate.force(mid, thickness_mm, material)
+        r = kc * (mid - g) - scale * surrogate.force(mid, thickness_mm, material)
         neg = r < 0.0
         lo = np.where(neg, mid, lo)
         hi = np.where(neg, hi, mid)
@@ -197,13 +204,42 @@ def reference_run(
         vs = a * vs + (1.0 - a) * (t - prev) / params.sample_time_s
         prev = t
         v[i] = vs
-    gap, ca, cb = _chain_terms(th, chain)
-    f_t = surrogate.force(gap, thickness_mm, material)
-    kc = params.coupling_stiffness_N_per_mm
-    fg, gp = coupled_jaw_force(surrogate, gap, thickness_mm, material, kc)
+    thc = th
+    if params.backlash_deg > 0:  # play between the encoder and the linkage
+        hb = 0.5 * math.radians(params.backlash_deg)
+        thc = np.empty_like(th)
+        y = float(th[0]) if len(th) else 0.0
+        for i, t in enumerate(th.tolist()):
+            y = min(max(min(max(y, t - hb), t + hb), th_lo), th_hi)
+            thc[i] = y
+    gap, ca, cb = _chain_terms(thc, chain)
+    sc = params.tissue_scale
+    f_t = sc * surrogate.force(gap, thickness_mm, material)
+    kc = params.coupling_effective_N_per_mm
+    fg, gp = coupled_jaw_force(surrogate, gap, thickness_mm, material, kc, sc)
     contact = f_t > 0.0
-    k_p = surrogate.stiffness(gp, thickness_mm, material)
+    k_p = sc * surrogate.stiffness(gp, thickness_mm, material)
+    if params.prony_g:  # quasi-linear viscoelastic rendering on the jaw force
+        from scipy.signal import lfilter
+
+        dfg = np.diff(fg, prepend=0.0)
+        acc = np.zeros_like(fg)
+        for g_i, tau in zip(params.prony_g, params.prony_tau_s):
+            acc += g_i * lfilter([1.0], [1.0, -math.exp(-params.sample_time_s / tau)], dfg)
+        fg = np.maximum(fg + acc, 0.0)
     fi = fg * ca + (cb if params.render_spring else 0.0)
+    if params.friction_rendered:
+        vf = -v * chain.L3_mm  # finger speed, mm/s, > 0 closing
+        thr = params.friction_velocity_threshold_mm_per_s
+        sdir = np.empty_like(vf)
+        sd = 0.0
+        for i, x in enumerate(vf.tolist()):
+            sd = 1.0 if x > thr else (-1.0 if x < -thr else sd)
+            sdir[i] = sd
+        fi = fi + (
+            (params.friction_coulomb_N + params.friction_load_coefficient * np.abs(fg * ca)) * sdir
+            + params.friction_viscous_N_s_per_mm * vf
+        )
     fi = fi - params.damping_Nms_per_rad * v / (chain.L3_mm * 1e-3)
     r_m = params.pulley_radius_mm * 1e-3
     torque = fi * r_m
@@ -268,6 +304,15 @@ class FixedTables:
     materials: list[MaterialTable] = field(default_factory=list)
     fixed_point: bool = True
     fe_hash: str = ""
+    lo_frac_q8: int = 0  # end stops between counts: n_lo - theta_lo/q, Q8
+    top_frac_q8: int = 0  # theta_hi/q - n_top, Q8
+    backlash_hb: int = 0  # half the backlash, counts (0: off)
+    friction: int = 0  # 1: Coulomb / load-proportional friction rendered
+    fric_c_mN: int = 0
+    fric_mu_q14: int = 0
+    fric_thr_q16: int = 0  # counts/sample, Q16
+    prony_b: list[int] = field(default_factory=list)  # 1 - exp(-T/tau), Q16
+    prony_g: list[int] = field(default_factory=list)  # Q12
 
     @property
     def nx_max(self) -> int:
@@ -311,6 +356,8 @@ class FixedTables:
             ("GF_NX_MAX", self.nx_max, "largest angle grid (RAM node table)"),
             ("GF_N_LO", self.n_lo, "closed end of the handle range, counts"),
             ("GF_N_TOP", self.n_top, "open end of the handle range, counts"),
+            ("GF_LO_FRAC_Q8", self.lo_frac_q8, "closed end stop below GF_N_LO, counts Q8"),
+            ("GF_TOP_FRAC_Q8", self.top_frac_q8, "open end stop above GF_N_TOP, counts Q8"),
             ("GF_N_CONTACT", self.n_contact, "jaws touch the tube for count < GF_N_CONTACT"),
             ("GF_FG_SHIFT", self.fg_shift, "jaw-force table unit: 2^GF_FG_SHIFT mN"),
             ("GF_CH_SHIFT", self.ch_shift, "chain grid step: 2^GF_CH_SHIFT counts"),
@@ -323,9 +370,22 @@ class FixedTables:
             ("GF_KD_SHIFT", self.kd_shift, ""),
             ("GF_RENDER_SPRING", int(p.render_spring), "render the return spring"),
             ("GF_SAMPLE_US", f"{round(p.sample_time_s * 1e6)}UL", "controller period, us"),
+            ("GF_BACKLASH_HB", self.backlash_hb, "half the rendered backlash, counts (0: off)"),
+            ("GF_FRICTION", self.friction, "render Coulomb + load friction (viscous: in GF_KD)"),
+            ("GF_FRIC_C_MN", f"{self.fric_c_mN}L", "Coulomb friction at the finger, mN"),
+            ("GF_FRIC_MU_Q14", f"{self.fric_mu_q14}UL", "load friction coefficient, Q14"),
+            ("GF_FRIC_THR_Q16", f"{self.fric_thr_q16}L",
+             "|velocity| that sets the friction direction, counts/sample Q16"),
+            ("GF_N_PRONY", len(self.prony_g), "Prony terms of the jaw-force rendering"),
         ]
         for name, val, doc in defs:
             lines.append(f"#define {name} {val}" + (f" /* {doc} */" if doc else ""))
+        if self.prony_g:
+            lines += [
+                "/* Prony terms: 1 - exp(-T / tau_i) (Q16) and g_i (Q12) */",
+                "#define GF_PRONY_B {" + ", ".join(f"{b}u" for b in self.prony_b) + "}",
+                "#define GF_PRONY_G {" + ", ".join(f"{g}u" for g in self.prony_g) + "}",
+            ]
         lines += [
             f"#define GF_Q_RAD {self.q_rad!r} /* handle angle per count, rad */",
             "",
@@ -459,7 +519,13 @@ def build_tables(
     gap, _, _ = _chain_terms(counts * q, chain)
     d = surrogate.diameter_mm
     n_contact = int(counts[np.argmax(gap >= d)]) if np.any(gap >= d) else n_top + 1
-    kc = params.coupling_stiffness_N_per_mm
+    kc = params.coupling_effective_N_per_mm  # in series with a rendered jaw compliance
+    sc = params.tissue_scale
+    augmented = params.backlash_deg > 0 or params.friction_rendered or bool(params.prony_g)
+    if augmented and not fixed_point:
+        raise ValueError(
+            "the float build renders no backlash, friction or viscoelasticity: use fixed point"
+        )
 
     # jaw-force curves, thresholds
     span = n_contact - n_lo
@@ -471,13 +537,13 @@ def build_tables(
         ts = surrogate.thicknesses(name)
         rows, warn, active = [], [], []
         for t in ts:
-            fg, gp = coupled_jaw_force(surrogate, g_c, t, name, kc)
+            fg, gp = coupled_jaw_force(surrogate, g_c, t, name, kc, sc)
             fg[-1] = 0.0  # n_contact: no contact
             rows.append(fg)
-            f_t = surrogate.force(g_c, t, name)
+            f_t = sc * surrogate.force(g_c, t, name)
             area = params.jaw_length_mm * 0.5 * math.pi * (params.diameter_mm - t)
             w = (f_t >= params.force_warning_N) | (f_t / area >= params.pressure_warning_MPa)
-            a = (f_t > 0) & (surrogate.stiffness(gp, t, name) > kc)
+            a = (f_t > 0) & (sc * surrogate.stiffness(gp, t, name) > kc)
             warn.append(int(cn[w].max()) if np.any(w) else n_lo - 1)
             active.append(int(cn[a].max()) if np.any(a) else n_lo - 1)
         fg_max = max(fg_max, max(float(r.max()) for r in rows))
@@ -530,6 +596,27 @@ def build_tables(
     kd_val = (
         1000.0 * params.damping_Nms_per_rad * q / (params.sample_time_s * chain.L3_mm * 1e-3)
     )  # mN per count/sample
+    # viscous friction b v_f (v_f = -theta' L3, mm/s) is a damping too: folded into the gain
+    kd_val += 1000.0 * params.friction_viscous_N_s_per_mm * chain.L3_mm * q / params.sample_time_s
+
+    # augmented rendering (grasprom diagnose): backlash, Coulomb friction, Prony terms
+    hb = int(round(0.5 * math.radians(params.backlash_deg) / q))
+    fric = params.friction_coulomb_N > 0 or params.friction_load_coefficient > 0
+    fric_c = int(round(params.friction_coulomb_N * 1000.0))
+    fric_mu = int(round(params.friction_load_coefficient * (1 << 14)))
+    thr = params.friction_velocity_threshold_mm_per_s * params.sample_time_s / (q * chain.L3_mm)
+    fric_thr = int(round(thr * 65536))
+    if fric_mu > 65535 or fric_c > 2**30 or fric_thr > 2**30:
+        raise ValueError("friction parameters out of the fixed-point range")
+    prony_b = [int(round(-math.expm1(-params.sample_time_s / tau) * 65536))
+               for tau in params.prony_tau_s]  # fmt: skip
+    prony_g = [int(round(g * 4096)) for g in params.prony_g]
+    if any(b < 1 or b > 65535 for b in prony_b) or any(g > 65535 for g in prony_g):
+        raise ValueError(
+            "Prony terms out of the fixed-point range (need T/tau in [1.5e-5, 11], g <= 16)"
+        )
+    if prony_g and (1.0 + sum(params.prony_g)) * fg_max * 1000.0 > 65535:
+        raise ValueError("rendered viscoelastic jaw force may exceed 65.5 N (uint16 mN)")
     kd_shift = 0
     kd_shift = 8 if kd_val * 256 <= 65535 else 0  # a byte shift is free on the AVR
     kd = int(round(kd_val * (1 << kd_shift)))
@@ -555,6 +642,15 @@ def build_tables(
         materials=materials,
         fixed_point=fixed_point,
         fe_hash=surrogate.fe_hash,
+        lo_frac_q8=int(round((n_lo - lo / q) * 256)),
+        top_frac_q8=int(round((hi / q - n_top) * 256)),
+        backlash_hb=hb,
+        friction=int(fric),
+        fric_c_mN=fric_c,
+        fric_mu_q14=fric_mu,
+        fric_thr_q16=fric_thr,
+        prony_b=prony_b,
+        prony_g=prony_g,
     )
 
 
@@ -841,10 +937,15 @@ def runtime_vectors_source(params: ControllerParams, cases: Sequence[TestCase]) 
     from .ccore import c_params
 
     raw = c_params(params)
-    init = ", ".join(
-        repr(float(getattr(raw, n))) if t.__name__ == "c_double" else str(int(getattr(raw, n)))
-        for n, t in raw._fields_
-    )
+
+    def c_init(v: object) -> str:
+        if isinstance(v, float):
+            return repr(v)
+        if isinstance(v, int):
+            return str(v)
+        return "{" + ", ".join(c_init(x) for x in v) + "}"  # a ctypes array
+
+    init = ", ".join(c_init(getattr(raw, n)) for n, _ in raw._fields_)
     allc: list[int] = []
     starts: dict[bytes, int] = {}
     rows = []

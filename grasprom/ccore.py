@@ -28,6 +28,20 @@ CSRC = Path(__file__).resolve().parent / "csrc"
 
 CORE_SOURCES = ("grasp_core.c", "grasp_core.h")
 
+PRONY_MAX = 4
+"""Prony terms of the C core (``GC_PRONY_MAX``); unused terms have g = 0 (they add exactly 0)."""
+PRONY_TAU_PAD = 1.0
+"""Time constant (s) of the unused Prony terms (any positive value)."""
+
+
+def prony_padded(params: ControllerParams) -> tuple[list[float], list[float]]:
+    """``(g, tau)`` of the controller's Prony series padded to :data:`PRONY_MAX` terms."""
+    g, tau = list(params.prony_g), list(params.prony_tau_s)
+    if len(g) > PRONY_MAX:
+        raise ValueError(f"the C core renders at most {PRONY_MAX} Prony terms, got {len(g)}")
+    pad = PRONY_MAX - len(g)
+    return g + [0.0] * pad, tau + [PRONY_TAU_PAD] * pad
+
 
 def _hex(x: float) -> str:
     if math.isinf(x):
@@ -145,6 +159,15 @@ class _Params(ctypes.Structure):
         ("diameter", ctypes.c_double),
         ("encoder_counts", ctypes.c_double),
         ("render_spring", ctypes.c_int),
+        ("tissue_scale", ctypes.c_double),
+        ("jaw_compliance", ctypes.c_double),
+        ("backlash_deg", ctypes.c_double),
+        ("friction_coulomb", ctypes.c_double),
+        ("friction_load", ctypes.c_double),
+        ("friction_viscous", ctypes.c_double),
+        ("friction_vthr", ctypes.c_double),
+        ("prony_g", ctypes.c_double * PRONY_MAX),
+        ("prony_tau", ctypes.c_double * PRONY_MAX),
     ]
 
 
@@ -165,11 +188,12 @@ class _Output(ctypes.Structure):
     ] + [
         (n, ctypes.c_int)
         for n in ("contact", "tissue_warning", "coupling_active", "saturated", "theta_clamped")
-    ]
+    ] + [("theta_chain_deg", ctypes.c_double), ("force_handle_friction", ctypes.c_double)]
 
 
 def c_params(params: ControllerParams) -> _Params:
     """The ``gc_params_t`` of a :class:`ControllerParams`."""
+    g, tau = prony_padded(params)
     return _Params(
         thickness=params.thickness_mm,
         material=MATERIAL_NAMES.index(params.material),
@@ -186,6 +210,15 @@ def c_params(params: ControllerParams) -> _Params:
         diameter=params.diameter_mm,
         encoder_counts=float(params.encoder_counts_per_rev),
         render_spring=int(bool(params.render_spring)),
+        tissue_scale=params.tissue_scale,
+        jaw_compliance=params.jaw_compliance_mm_per_N,
+        backlash_deg=params.backlash_deg,
+        friction_coulomb=params.friction_coulomb_N,
+        friction_load=params.friction_load_coefficient,
+        friction_viscous=params.friction_viscous_N_s_per_mm,
+        friction_vthr=params.friction_velocity_threshold_mm_per_s,
+        prony_g=(ctypes.c_double * PRONY_MAX)(*g),
+        prony_tau=(ctypes.c_double * PRONY_MAX)(*tau),
     )
 
 
@@ -271,4 +304,6 @@ class CCore:
             coupling_active=bool(o.coupling_active),
             saturated=bool(o.saturated),
             theta_clamped=bool(o.theta_clamped),
+            theta_chain_deg=o.theta_chain_deg,
+            force_handle_friction_N=o.force_handle_friction,
         )

@@ -76,6 +76,9 @@ UNITS: dict[str, tuple[dict[str, int], list[tuple[str, float]]]] = {
     "N.m.s/rad": ({"kg": 1, "m": 2, "s": -1, "rad": -1}, []),
     "Hz": ({"s": -1}, []),
     "Pa": ({"kg": 1, "m": -1, "s": -2}, [("kPa", 1e-3), ("MPa", 1e-6)]),
+    "m/N": ({"kg": -1, "s": 2}, [("mm/N", 1e3)]),
+    "N.s/m": ({"kg": 1, "s": -1}, [("N.s/mm", 1e-3)]),
+    "m/s": ({"m": 1, "s": -1}, [("mm/s", 1e3)]),
 }
 
 THETA_DOT_MAX = 1e3
@@ -107,7 +110,45 @@ _PARAMETERS = (
      "length of tube under the jaws (contact area for the mean pressure)"),
     ("diameter", "diameter_mm", 1e-3, "m", "mm", 1e-3, 1.0,
      "tube outer diameter (contact width of the flattened tube); must exceed 2 x thickness"),
+    # rendering of diagnosed effects (grasprom diagnose -> --augmented); neutral defaults
+    ("tissue_scale", "tissue_scale", 1.0, None, None, 1e-3, 1e3,
+     "factor on the tissue force and stiffness (tissue_stiffness_scale)"),
+    ("jaw_compliance", "jaw_compliance_mm_per_N", 1e-3, "m/N", "mm/N", 0.0, 1.0,
+     "series compliance of jaw + mechanism: coupling 1/(1/k_c + C) (jaw_compliance)"),
+    ("backlash", "backlash_deg", math.pi / 180.0, "rad", "deg", 0.0, 0.5,
+     "play between the encoder and the linkage, total width (backlash)"),
+    ("friction_coulomb", "friction_coulomb_N", 1.0, "N", None, 0.0, 1e3,
+     "Coulomb friction at the finger, in the direction of the last motion (mechanism_friction)"),
+    ("friction_load_coefficient", "friction_load_coefficient", 1.0, None, None, 0.0, 10.0,
+     "load-proportional Coulomb friction, x |tissue handle force|"),
+    ("friction_viscous", "friction_viscous_N_s_per_mm", 1e3, "N.s/m", "N.s/mm", 0.0, 1e6,
+     "viscous friction at the finger, on the finger speed"),
+    ("friction_velocity_threshold", "friction_velocity_threshold_mm_per_s", 1e-3, "m/s",
+     "mm/s", 1e-6, 10.0, "finger speed above which the friction direction follows the motion"),
+    *(
+        (f"prony_g_{i + 1}", f"prony_g[{i}]", 1.0, None, None, 0.0, 100.0,
+         f"Prony coefficient {i + 1} of the viscoelastic jaw-force rendering "
+         "(tissue_viscoelasticity; 0 = term off)")
+        for i in range(4)
+    ),
+    *(
+        (f"prony_tau_{i + 1}", f"prony_tau_s[{i}]", 1.0, "s", None, 1e-6, 1e6,
+         f"relaxation time of Prony term {i + 1}")
+        for i in range(4)
+    ),
 )
+
+
+def _param_value(params: ControllerParams, field_: str) -> float:
+    """A ControllerParams value by field name; ``prony_g[i]`` / ``prony_tau_s[i]`` are padded
+    to the C core's four terms (g = 0 terms add exactly 0)."""
+    if field_.endswith("]"):
+        from .ccore import prony_padded
+
+        name, idx = field_[:-1].split("[")
+        g, tau = prony_padded(params)
+        return float((g if name == "prony_g" else tau)[int(idx)])
+    return float(getattr(params, field_))
 ENCODER_COUNTS_MAX = 2**30
 
 
@@ -225,7 +266,7 @@ def variables(params: ControllerParams, surrogate: Surrogate) -> list[Variable]:
         start=MATERIAL_NAMES.index(params.material), min=0, max=len(MATERIAL_NAMES) - 1)
     for name, field_, factor, unit, disp, lo, hi, desc in _PARAMETERS:
         add(name, "Real", "parameter", "fixed", desc, unit=unit, display_unit=disp,
-            start=getattr(params, field_) * factor, min=lo, max=hi)
+            start=_param_value(params, field_) * factor, min=lo, max=hi)
     add("encoder_counts", "Integer", "parameter", "fixed",
         "motor encoder resolution in counts per revolution (0: no quantisation of theta)",
         start=int(params.encoder_counts_per_rev), min=0, max=ENCODER_COUNTS_MAX)
@@ -273,7 +314,7 @@ def start_values(params: ControllerParams) -> dict[str, float | int | bool]:
         "material": MATERIAL_NAMES.index(params.material),
     }
     for name, field_, factor, *_ in _PARAMETERS:
-        d[name] = getattr(params, field_) * factor
+        d[name] = _param_value(params, field_) * factor
     d["encoder_counts"] = int(params.encoder_counts_per_rev)
     d["render_spring"] = bool(params.render_spring)
     return d
@@ -552,6 +593,21 @@ rendered jaw force F<sub>g</sub> = k<sub>c</sub>(g<sub>p</sub> &minus; g)
 <li>Safety: <code>tissue_warning</code> when F(g) &ge; <code>force_warning</code> or
 F(g) / (L<sub>jaw</sub> &pi;(D &minus; t)/2) &ge; <code>pressure_warning</code>.</li>
 </ol>
+
+<h2>Rendering of diagnosed effects (grasprom diagnose &rarr; <code>--augmented</code>)</h2>
+<p>Neutral by default (the step is then exactly the one above). <code>tissue_scale</code>
+multiplies F and its stiffness; <code>jaw_compliance</code> C puts the jaw in series with the
+coupling, k<sub>c</sub> &rarr; 1/(1/k<sub>c</sub> + C); <code>backlash</code> b: the linkage
+angle follows &theta; through a play of width b (gap, tissue, spring and virtual work use it);
+<code>prony_g_i</code>, <code>prony_tau_i</code>: h<sub>i</sub> &larr;
+e<sup>&minus;T/&tau;<sub>i</sub></sup> h<sub>i</sub> + &Delta;F<sub>g</sub>,
+F<sub>g</sub> &rarr; max(F<sub>g</sub> + &Sigma; g<sub>i</sub> h<sub>i</sub>, 0) (quasi-linear
+viscoelastic rendering); <code>friction_coulomb</code> F<sub>c</sub>,
+<code>friction_load_coefficient</code> &mu;, <code>friction_viscous</code> b<sub>v</sub>:
+F<sub>i</sub> += (F<sub>c</sub> + &mu; |F<sub>g</sub> dg/d&theta; / L<sub>3</sub>|) s +
+b<sub>v</sub> v<sub>f</sub>, v<sub>f</sub> = &minus;v L<sub>3</sub> the finger speed (closing
+&gt; 0), s = the direction of the last finger motion faster than
+<code>friction_velocity_threshold</code>.</p>
 
 <h2>Status policy</h2>
 <ul>

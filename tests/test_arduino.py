@@ -93,6 +93,53 @@ def test_reference_matches_the_python_controller(surrogate, tables):
         assert np.sum(got != ref.flags[name]) <= 2, name
 
 
+AUGMENTED = dict(tissue_scale=1.3, jaw_compliance_mm_per_N=0.01, backlash_deg=0.3,
+                 friction_coulomb_N=2.0, friction_load_coefficient=0.1,
+                 friction_viscous_N_s_per_mm=0.02, prony_g=(0.3, 0.2), prony_tau_s=(0.2, 1.0))
+"""An augmented model's rendering (grasprom diagnose -> --augmented), every effect on."""
+
+
+def test_augmented_reference_matches_the_python_controller(surrogate, tables):
+    """With every rendered effect on, the vectorised reference is still the controller."""
+    p = ControllerParams(material="mr", thickness_mm=1.5, **AUGMENTED)
+    counts = ar.sweep_counts(tables)
+    ref = ar.reference_run(p, surrogate, "mr", 1.5, counts)
+    ctl = ImpedanceController(p, surrogate)
+    out = [ctl.step(n * tables.q_rad) for n in counts]
+    torque = np.array([o.torque_Nm for o in out])
+    assert np.max(np.abs(torque - ref.torque_Nm)) / p.torque_limit_Nm < 1e-3
+    base = ar.reference_run(ControllerParams(material="mr", thickness_mm=1.5), surrogate, "mr",
+                            1.5, counts)  # fmt: skip
+    assert np.max(np.abs(base.torque_Nm - ref.torque_Nm)) / p.torque_limit_Nm > 0.02
+
+
+def test_augmented_export_on_host_and_avr(surrogate, tmp_path):
+    """The Arduino core renders an augmented model (tables: scale, compliance; state: backlash,
+    friction, Prony terms) within the error budget, bit-identically on the AVR."""
+    need("gcc", "gcc")
+    p = ControllerParams(**AUGMENTED)
+    t = ar.build_tables(surrogate, p, 0.01)
+    assert t.backlash_hb > 0 and t.friction and len(t.prony_g) == 2
+    cases = ar.default_cases(t, surrogate)
+    host = ar.run_host(t, cases, tmp_path / "host")
+    e = ar.error_figures(t, surrogate, cases, host)
+    plain = ar.build_tables(surrogate, ControllerParams(), 0.01)
+    e_plain = ar.error_figures(t, surrogate, cases, ar.run_host(plain, cases, tmp_path / "p"))
+    print(f"\naugmented export: handle error {e.handle_pct_fs:.3f} % FS "
+          f"(plain export against the augmented reference: {e_plain.handle_pct_fs:.2f} % FS); "
+          f"flags {e.flag_mismatch}")  # fmt: skip
+    assert e.handle_pct_fs <= 100 * ar.ERROR_BUDGET
+    assert e_plain.handle_pct_fs > 4 * 100 * ar.ERROR_BUDGET  # the rendering matters
+    need("avr-gcc", "gcc-avr avr-libc")
+    need_simavr()
+    avr = ar.run_simavr(ar.build_avr_test(t, cases, tmp_path / "avr"), cases, tmp_path / "avr")
+    assert avr.run.raw == host.raw
+    sz = ar.measure_size(t, tmp_path / "size")
+    print(f"augmented export on the AVR: cycles/step max {avr.cycles.max()} mean "
+          f"{avr.cycles.mean():.0f}, flash {sz.flash_B} B, RAM {sz.ram_B} B")
+    assert sz.flash_B <= ar.FLASH_BUDGET_B and sz.ram_B <= ar.RAM_BUDGET_B
+
+
 def test_host_error_within_budget(surrogate, tables, host_dense):
     """Every angle, every material, thickness nodes and midpoints: error budget and tol."""
     cases, run = host_dense

@@ -28,6 +28,13 @@ CASES = [
     ("le", 1.95, {"coupling_stiffness_N_per_mm": 80.0, "torque_limit_Nm": 0.3}),
     ("le", 0.8, {"encoder_counts_per_rev": 0, "render_spring": False}),
     ("mr", 2.0, {"velocity_cutoff_Hz": 5.0, "damping_Nms_per_rad": 0.05}),
+    # every rendered effect of an augmented model (grasprom diagnose) at once
+    ("mr", 1.4, {"tissue_scale": 1.3, "jaw_compliance_mm_per_N": 0.01, "backlash_deg": 0.3,
+                 "friction_coulomb_N": 2.0, "friction_load_coefficient": 0.1,
+                 "friction_viscous_N_s_per_mm": 0.02, "prony_g": (0.3, 0.2),
+                 "prony_tau_s": (0.2, 1.0)}),
+    ("nh", 1.15, {"prony_g": (0.5, 0.1, 0.05, 0.02), "prony_tau_s": (0.01, 0.1, 1.0, 10.0),
+                  "friction_coulomb_N": 1.0, "encoder_counts_per_rev": 0, "tissue_scale": 0.7}),
 ]
 
 
@@ -99,3 +106,16 @@ def test_c_core_measured_velocity_matches_python(surrogate, tmp_path):
     assert o2.force_handle_N - o1.force_handle_N == pytest.approx(
         0.01 * 1.0 / (p.chain.L3_mm * 1e-3), rel=1e-9
     )
+
+
+def test_augmented_rendering_changes_the_c_output(surrogate, tmp_path):
+    """The parity above is not trivial: the rendered effects move the C core's torque."""
+    base = ControllerParams()
+    aug = dataclasses.replace(base, tissue_scale=1.3, backlash_deg=0.3, friction_coulomb_N=2.0,
+                              prony_g=(0.3,), prony_tau_s=(0.2,))
+    th = _trajectories()["slow"]
+    out = []
+    for p in (base, aug):
+        core = CCore(p, surrogate, tmp_path / str(len(out)))
+        out.append(np.array([core.step(math.radians(a)).force_handle_N for a in th]))
+    assert np.max(np.abs(out[1] - out[0])) > 1.0  # N

@@ -89,6 +89,11 @@ CASES = [
     ("le", 1.95, {"coupling_stiffness_N_per_mm": 80.0, "torque_limit_Nm": 0.3}),
     ("le", 0.8, {"encoder_counts_per_rev": 0, "render_spring": False}),
     ("mr", 2.0, {"velocity_cutoff_Hz": 5.0, "damping_Nms_per_rad": 0.05}),
+    # an augmented model's rendering (grasprom diagnose -> --augmented): FMU parameters
+    ("nh", 1.4, {"tissue_scale": 1.3, "jaw_compliance_mm_per_N": 0.01, "backlash_deg": 0.3,
+                 "friction_coulomb_N": 2.0, "friction_load_coefficient": 0.1,
+                 "friction_viscous_N_s_per_mm": 0.02, "prony_g": (0.3, 0.2),
+                 "prony_tau_s": (0.2, 1.0)}),
 ]
 
 

@@ -161,6 +161,21 @@ static void core_params(const double *v, gc_params_t *p) {
     p->diameter = v[GF_VR_diameter] * 1e3;
     p->encoder_counts = v[GF_VR_encoder_counts];
     p->render_spring = v[GF_VR_render_spring] != 0.0;
+    p->tissue_scale = v[GF_VR_tissue_scale];
+    p->jaw_compliance = v[GF_VR_jaw_compliance] * 1e3;
+    p->backlash_deg = v[GF_VR_backlash] * (180.0 / 3.14159265358979323846);
+    p->friction_coulomb = v[GF_VR_friction_coulomb];
+    p->friction_load = v[GF_VR_friction_load_coefficient];
+    p->friction_viscous = v[GF_VR_friction_viscous] * 1e-3;
+    p->friction_vthr = v[GF_VR_friction_velocity_threshold] * 1e3;
+    p->prony_g[0] = v[GF_VR_prony_g_1];
+    p->prony_g[1] = v[GF_VR_prony_g_2];
+    p->prony_g[2] = v[GF_VR_prony_g_3];
+    p->prony_g[3] = v[GF_VR_prony_g_4];
+    p->prony_tau[0] = v[GF_VR_prony_tau_1];
+    p->prony_tau[1] = v[GF_VR_prony_tau_2];
+    p->prony_tau[2] = v[GF_VR_prony_tau_3];
+    p->prony_tau[3] = v[GF_VR_prony_tau_4];
 }
 
 int gf_exit_initialization(gf_instance_t *inst, const char *fn) {

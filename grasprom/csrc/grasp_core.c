@@ -178,6 +178,7 @@ int gc_check_params(const gc_params_t *p, const gc_material_t *materials, int n_
                     double *thickness_clamped, int *clamped, const char **message) {
     const gc_material_t *m;
     double lo, hi, t = p->thickness;
+    int i;
     *clamped = 0;
     *thickness_clamped = t;
     if (p->material < 0 || p->material >= n_materials) {
@@ -197,6 +198,25 @@ int gc_check_params(const gc_params_t *p, const gc_material_t *materials, int n_
 #undef GC_POS
     if (!(isfinite(p->spring_k) && p->spring_k >= 0.0)) { *message = "spring_k must be >= 0"; return -3; }
     if (!(isfinite(p->damping) && p->damping >= 0.0)) { *message = "damping must be >= 0"; return -3; }
+    if (!(isfinite(p->tissue_scale) && p->tissue_scale > 0.0)) {
+        *message = "tissue_scale must be finite and > 0"; return -3;
+    }
+    if (!(isfinite(p->friction_vthr) && p->friction_vthr > 0.0)) {
+        *message = "friction_velocity_threshold must be finite and > 0"; return -3;
+    }
+#define GC_NONNEG(x, name) if (!(isfinite(x) && (x) >= 0.0)) { *message = name " must be >= 0"; return -3; }
+    GC_NONNEG(p->jaw_compliance, "jaw_compliance");
+    GC_NONNEG(p->backlash_deg, "backlash");
+    GC_NONNEG(p->friction_coulomb, "friction_coulomb");
+    GC_NONNEG(p->friction_load, "friction_load_coefficient");
+    GC_NONNEG(p->friction_viscous, "friction_viscous");
+    for (i = 0; i < GC_PRONY_MAX; ++i) {
+        GC_NONNEG(p->prony_g[i], "prony_g");
+        if (!(isfinite(p->prony_tau[i]) && p->prony_tau[i] > 0.0)) {
+            *message = "prony_tau must be finite and > 0"; return -3;
+        }
+    }
+#undef GC_NONNEG
     if (!(isfinite(p->encoder_counts) && p->encoder_counts >= 0.0)) {
         *message = "encoder_counts must be >= 0"; return -3;
     }
@@ -214,6 +234,7 @@ int gc_check_params(const gc_params_t *p, const gc_material_t *materials, int n_
 }
 
 void gc_init(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c) {
+    int i;
     s->prev = 0.0;
     s->has_prev = 0;
     s->v = 0.0;
@@ -224,16 +245,36 @@ void gc_init(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c) {
     s->area = p->jaw_length * (0.5 * M_PI * (p->diameter - p->thickness));
     s->b_mat = 0;
     s->b_t = NAN;
+    s->play = 0.0;
+    s->has_play = 0;
+    s->sdir = 0.0;
+    s->fg_prev = 0.0;
+    for (i = 0; i < GC_PRONY_MAX; ++i) {
+        s->h[i] = 0.0;
+        s->pa[i] = exp(-p->sample_time / p->prony_tau[i]);
+    }
+    s->hb = 0.5 * (p->backlash_deg * DEG_TO_RAD);
+    s->prony_on = 0;
+    for (i = 0; i < GC_PRONY_MAX; ++i) s->prony_on |= p->prony_g[i] != 0.0;
 }
 
 /* ---------------------------------------------------------------- the step */
+
+/* tissue force and stiffness at a gap, scaled (grasprom.controller.ImpedanceController._tissue) */
+static void tissue(gc_state_t *s, const gc_params_t *p, double gap, double *f, double *k) {
+    surrogate_fast(s, gap, f, k);
+    if (p->tissue_scale != 1.0) {
+        *f = *f * p->tissue_scale;
+        *k = *k * p->tissue_scale;
+    }
+}
 
 /* the step; use_ext: damp the external velocity ext_v (rad/s) instead of the filtered estimate */
 static void step_impl(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
                       const gc_material_t *m, double theta, int use_ext, double ext_v,
                       gc_output_t *o) {
-    double th = theta, v_raw, th_deg, g, g1, u, du, fs, f_g, k_g, kc, gp, fg, hi;
-    double fi, fi_spring, r_m, torque, lim;
+    double th = theta, v_raw, th_deg, thc, thc_deg, g, g1, u, du, fs, f_g, k_g, kc, gp, fg, hi;
+    double fgr, fi, fi_spring, fi_fric = 0.0, v_damp, r_m, torque, lim;
     int clamped = 0, contact, active = 0, i;
 
     if (isnan(th)) {
@@ -254,11 +295,26 @@ static void step_impl(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
     s->v = s->a * s->v + (1.0 - s->a) * v_raw;
     th_deg = th * RAD_TO_DEG;
 
-    gc_chain_state(c, th_deg, &g, &g1, &u, &du);
+    /* backlash: the linkage follows the encoder through a play of width 2 hb */
+    thc = th;
+    if (s->hb > 0.0) {
+        double y = s->has_play ? s->play : th;
+        if (y < th - s->hb) y = th - s->hb;
+        if (y > th + s->hb) y = th + s->hb;
+        if (y < c->theta_lo) y = c->theta_lo;
+        if (y > c->theta_hi) y = c->theta_hi;
+        s->play = y;
+        s->has_play = 1;
+        thc = y;
+    }
+    thc_deg = thc * RAD_TO_DEG;
+
+    gc_chain_state(c, thc_deg, &g, &g1, &u, &du);
     if (s->b_mat != m || !(s->b_t == p->thickness)) blend_prepare(s, m, p->thickness);
-    surrogate_fast(s, g, &f_g, &k_g);
+    tissue(s, p, g, &f_g, &k_g);
     contact = f_g > 0.0;
     kc = p->coupling_k;
+    if (p->jaw_compliance != 0.0) kc = 1.0 / (1.0 / kc + p->jaw_compliance);
     if (contact) {
         double f_p, k_p, r;
         int n_iter = isinf(s->gp) ? GC_COLD_START_ITERATIONS : GC_NEWTON_ITERATIONS;
@@ -267,14 +323,14 @@ static void step_impl(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
         if (gp < g) gp = g;
         if (gp > hi) gp = hi;
         for (i = 0; i < n_iter; ++i) {
-            surrogate_fast(s, gp, &f_p, &k_p);
+            tissue(s, p, gp, &f_p, &k_p);
             r = kc * (gp - g) - f_p;
             gp = gp - r / (kc + k_p);
             if (gp < g) gp = g;
             if (gp > hi) gp = hi;
         }
         fg = kc * (gp - g);
-        surrogate_fast(s, gp, &f_p, &k_p);
+        tissue(s, p, gp, &f_p, &k_p);
         active = k_p > kc;
     } else {
         gp = g;
@@ -282,11 +338,35 @@ static void step_impl(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
     }
     s->gp = gp;
 
+    /* viscoelastic (quasi-linear Prony) rendering of the jaw force; g = 0 terms add exactly 0,
+     * so the loop is skipped when every g is 0 (parameters are fixed after gc_init) */
+    fgr = fg;
+    if (s->prony_on) {
+        double d = fg - s->fg_prev, acc = 0.0;
+        s->fg_prev = fg;
+        for (i = 0; i < GC_PRONY_MAX; ++i) {
+            s->h[i] = s->pa[i] * s->h[i] + d;
+            acc += p->prony_g[i] * s->h[i];
+        }
+        fgr = fg + acc;
+        if (fgr < 0.0) fgr = 0.0;
+    }
+
     fs = c->spring_preload + p->spring_k * u;
     fi_spring = -fs * du / c->L3;
-    fi = (fg * g1 - fs * du) / c->L3;
+    fi = (fgr * g1 - fs * du) / c->L3;
     if (!p->render_spring) fi -= fi_spring;
-    fi -= p->damping * (use_ext ? ext_v : s->v) / (c->L3 * 1e-3);
+    v_damp = use_ext ? ext_v : s->v;
+    if (p->friction_coulomb > 0.0 || p->friction_load > 0.0 || p->friction_viscous > 0.0) {
+        double vf = -v_damp * c->L3, fit;
+        if (vf > p->friction_vthr) s->sdir = 1.0;
+        else if (vf < -p->friction_vthr) s->sdir = -1.0;
+        fit = fgr * g1 / c->L3;
+        fi_fric = (p->friction_coulomb + p->friction_load * fabs(fit)) * s->sdir
+                  + p->friction_viscous * vf;
+        fi += fi_fric;
+    }
+    fi -= p->damping * v_damp / (c->L3 * 1e-3);
     r_m = p->pulley_radius * 1e-3;
     torque = fi * r_m;
     lim = p->torque_limit;
@@ -296,16 +376,18 @@ static void step_impl(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
     o->torque = torque;
     o->force_handle = torque / r_m;
     o->force_handle_spring = fi_spring;
-    o->force_jaw = fg;
+    o->force_jaw = fgr;
     o->force_tissue = f_g;
     o->gap = g;
     o->proxy_gap = gp;
     o->theta_deg = th_deg;
-    o->velocity = use_ext ? ext_v : s->v;
+    o->velocity = v_damp;
     o->contact = contact;
     o->tissue_warning = f_g >= p->force_warning || f_g / s->area >= p->pressure_warning;
     o->coupling_active = active;
     o->theta_clamped = clamped;
+    o->theta_chain_deg = thc_deg;
+    o->force_handle_friction = fi_fric;
 }
 
 void gc_step(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c, const gc_material_t *m,
@@ -401,6 +483,17 @@ int8_t gf_init(gf_state_t *s, uint8_t material, uint16_t thickness_um) {
     s->w = 0;
     s->prev = 0;
     s->has_prev = 0;
+#if GF_BACKLASH_HB > 0
+    s->play = 0;
+    s->has_play = 0;
+#endif
+#if GF_FRICTION
+    s->sdir = 0;
+#endif
+#if GF_N_PRONY > 0
+    s->fg_prev = 0;
+    for (i = 0; i < GF_N_PRONY; ++i) s->h[i] = 0;
+#endif
     return rc;
 }
 
@@ -416,7 +509,8 @@ static uint8_t gf_segment(const gf_state_t *s, int16_t n) {
 
 void gf_step(gf_state_t *s, int16_t count, gf_output_t *o) {
     uint8_t flags = 0, ci;
-    int16_t n = count, dn, cm;
+    int16_t n = count, nc, cm;
+    int32_t pos, dp;
     uint16_t cf;
 #ifdef GF_FLOAT
     float fg = 0.0f, fi, fa, fb, v;
@@ -424,31 +518,55 @@ void gf_step(gf_state_t *s, int16_t count, gf_output_t *o) {
     int32_t fg = 0, fi, fa, fb;
 #endif
 
-    if (n < GF_N_LO) { n = GF_N_LO; flags |= GF_THETA_CLAMPED; }
-    else if (n > GF_N_TOP) { n = GF_N_TOP; flags |= GF_THETA_CLAMPED; }
-    if (!s->has_prev) { s->prev = n; s->has_prev = 1; }
-    dn = n - s->prev;
-    s->prev = n;
-    s->w += mulq16((((int32_t)dn) << 16) - s->w, GF_VEL_B);
+    /* position for the velocity, counts Q8: a clamped angle sits at the end stop itself, which
+     * lies between two counts (as in the reference: theta clamped into [theta_lo, theta_hi]) */
+    pos = (int32_t)n << 8;
+    if (n < GF_N_LO) {
+        n = GF_N_LO;
+        pos = ((int32_t)GF_N_LO << 8) - GF_LO_FRAC_Q8;
+        flags |= GF_THETA_CLAMPED;
+    } else if (n > GF_N_TOP) {
+        n = GF_N_TOP;
+        pos = ((int32_t)GF_N_TOP << 8) + GF_TOP_FRAC_Q8;
+        flags |= GF_THETA_CLAMPED;
+    }
+    if (!s->has_prev) { s->prev = pos; s->has_prev = 1; }
+    dp = pos - s->prev;
+    s->prev = pos;
+    s->w += mulq16((dp << 8) - s->w, GF_VEL_B);
 
-    if (n < GF_N_CONTACT) {
-        uint8_t i = gf_segment(s, n);
+    nc = n; /* the linkage's count: behind the backlash, if rendered */
+#if GF_BACKLASH_HB > 0
+    {
+        int16_t y = s->has_play ? s->play : n;
+        if (y < n - GF_BACKLASH_HB) y = n - GF_BACKLASH_HB;
+        if (y > n + GF_BACKLASH_HB) y = n + GF_BACKLASH_HB;
+        if (y < GF_N_LO) y = GF_N_LO;
+        if (y > GF_N_TOP) y = GF_N_TOP;
+        s->play = y;
+        s->has_play = 1;
+        nc = y;
+    }
+#endif
+
+    if (nc < GF_N_CONTACT) {
+        uint8_t i = gf_segment(s, nc);
         int16_t x0 = (int16_t)GF_RD16(&s->x[i]);
         uint8_t k = GF_RD8(&s->k[i]);
         int32_t y0 = s->y[i], dy = (int32_t)s->y[i + 1] - y0;
         flags |= GF_CONTACT;
 #ifdef GF_FLOAT
-        fg = ldexpf((float)y0 + ldexpf((float)dy * (float)(n - x0), -(int)k), GF_FG_SHIFT);
+        fg = ldexpf((float)y0 + ldexpf((float)dy * (float)(nc - x0), -(int)k), GF_FG_SHIFT);
 #else
-        /* y0 + floor(dy (n - x0) / 2^k) as a 16 x 16 bit product and a 16-bit shift (k >= 1) */
-        fg = y0 + (((int32_t)(int16_t)dy * (int32_t)(uint16_t)((uint16_t)(n - x0) << (16 - k)))
+        /* y0 + floor(dy (nc - x0) / 2^k) as a 16 x 16 bit product and a 16-bit shift (k >= 1) */
+        fg = y0 + (((int32_t)(int16_t)dy * (int32_t)(uint16_t)((uint16_t)(nc - x0) << (16 - k)))
                    >> 16); /* units of 2^GF_FG_SHIFT mN */
 #endif
-        if (n <= s->warn_count) flags |= GF_TISSUE_WARNING;
-        if (n <= s->active_count) flags |= GF_COUPLING_ACTIVE;
+        if (nc <= s->warn_count) flags |= GF_TISSUE_WARNING;
+        if (nc <= s->active_count) flags |= GF_COUPLING_ACTIVE;
     }
 
-    cm = n - GF_N_LO;
+    cm = nc - GF_N_LO;
     ci = (uint8_t)(cm >> GF_CH_SHIFT);
     cf = (uint16_t)(cm & ((1 << GF_CH_SHIFT) - 1));
     {
@@ -475,18 +593,50 @@ void gf_step(gf_state_t *s, int16_t count, gf_output_t *o) {
     o->torque_uNm = (int32_t)(fi * (float)GF_R_Q8 / 256.0f);
     o->force_jaw_mN = (int32_t)(fg + 0.5f);
 #else
+#if GF_N_PRONY > 0
+    {
+        /* quasi-linear viscoelastic rendering: h_i <- a_i h_i + dFg, Fg_r = Fg + sum g_i h_i */
+        static const uint16_t PB[GF_N_PRONY] = GF_PRONY_B, PG[GF_N_PRONY] = GF_PRONY_G;
+        int32_t fgm = fg << GF_FG_SHIFT, d = fgm - s->fg_prev, acc = 0; /* mN */
+        uint8_t i;
+        s->fg_prev = fgm;
+        for (i = 0; i < GF_N_PRONY; ++i) {
+            s->h[i] += (d << 8) - mulq16(s->h[i], PB[i]);  /* mN Q8 */
+            acc += mulq16(s->h[i], PG[i]);                  /* mN Q4 */
+        }
+        fgm += acc >> 4;
+        if (fgm < 0) fgm = 0;
+        fi = (int32_t)(((uint32_t)(uint16_t)fgm * (uint32_t)(uint16_t)fa) >> 15);
+        fg = fgm; /* reported in mN below */
+    }
+#else
     fi = (int32_t)(((uint32_t)(uint16_t)fg * (uint32_t)(uint16_t)fa) >> (15 - GF_FG_SHIFT));
+#endif
+#if GF_FRICTION
+    {
+        /* Coulomb + load-proportional friction at the finger in the direction of the last
+         * motion faster than the threshold (closing: counts decrease, w < 0) */
+        int32_t ff = GF_FRIC_C_MN + (int32_t)(((uint32_t)fi * GF_FRIC_MU_Q14) >> 14);
+        if (s->w < -GF_FRIC_THR_Q16) s->sdir = 1;
+        else if (s->w > GF_FRIC_THR_Q16) s->sdir = -1;
+        if (s->sdir > 0) fi += ff;
+        else if (s->sdir < 0) fi -= ff;
+    }
+#endif
     if (GF_RENDER_SPRING) fi += fb;
     if (GF_KD != 0) fi -= mulq16(s->w, GF_KD) >> GF_KD_SHIFT;
     if (fi > GF_FI_LIMIT_MN) { fi = GF_FI_LIMIT_MN; flags |= GF_SATURATED; }
     else if (fi < -GF_FI_LIMIT_MN) { fi = -GF_FI_LIMIT_MN; flags |= GF_SATURATED; }
     o->force_handle_mN = fi;
     o->torque_uNm = (fi * GF_R_Q8) >> 8;
+#if GF_N_PRONY > 0
+    o->force_jaw_mN = fg;
+#else
     o->force_jaw_mN = fg << GF_FG_SHIFT;
+#endif
 #endif
     o->velocity_q16 = s->w;
     o->count = n;
     o->flags = flags;
 }
-
 #endif /* GC_TABULATED */

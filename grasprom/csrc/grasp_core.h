@@ -100,6 +100,8 @@ typedef struct {
     double theta_lo_deg, theta_hi_deg;
 } gc_chain_t;
 
+#define GC_PRONY_MAX 4 /* Prony terms of the viscoelastic rendering */
+
 /* Run-time parameters (grasprom.controller.ControllerParams). */
 typedef struct {
     double thickness;        /* mm, inside the material's range (gc_check_params clamps) */
@@ -117,6 +119,17 @@ typedef struct {
     double diameter;         /* mm */
     double encoder_counts;   /* counts per motor revolution, 0 = no quantisation */
     int render_spring;       /* 0/1 */
+    /* rendering of the effects a sim-to-real diagnosis found (grasprom diagnose); the neutral
+     * values (1, 0, ..., 0) leave the step bit-identical to the plain controller */
+    double tissue_scale;     /* tissue force and stiffness factor, 1 */
+    double jaw_compliance;   /* series compliance of jaw + mechanism, mm/N (k_c -> 1/(1/k_c + C)) */
+    double backlash_deg;     /* play between encoder and linkage, total width, deg */
+    double friction_coulomb; /* Coulomb friction at the finger, N */
+    double friction_load;    /* load-proportional Coulomb coefficient (x |tissue handle force|), 1 */
+    double friction_viscous; /* viscous friction at the finger, N s/mm */
+    double friction_vthr;    /* finger speed that sets the friction direction, mm/s (> 0) */
+    double prony_g[GC_PRONY_MAX];   /* Prony (QLV) coefficients on the rendered jaw force, 1 */
+    double prony_tau[GC_PRONY_MAX]; /* their time constants, s (> 0) */
 } gc_params_t;
 
 /* Controller state and constants derived from the parameters at gc_init(). */
@@ -133,13 +146,22 @@ typedef struct {
     double b_t, b_w, b_v, b_dgc, b_idn, b_sa, b_sb;
     int b_i;
     int hint[2];       /* last Hermite interval of the two blended curves */
+    /* augmented rendering */
+    double play;       /* chain angle behind the backlash, rad */
+    int has_play;
+    double sdir;       /* friction direction: +1 closing, -1 opening, 0 not yet moved */
+    double fg_prev;    /* last coupled jaw force, N */
+    double h[GC_PRONY_MAX];  /* Prony states, N */
+    double pa[GC_PRONY_MAX]; /* exp(-T / tau_i) */
+    double hb;         /* half the backlash, rad */
+    int prony_on;      /* any prony_g != 0 */
 } gc_state_t;
 
 typedef struct {
     double torque;               /* N m, after saturation */
     double force_handle;         /* N, torque / pulley radius */
     double force_handle_spring;  /* N */
-    double force_jaw;            /* N, through the virtual coupling */
+    double force_jaw;            /* N, rendered: through the virtual coupling (+ Prony terms) */
     double force_tissue;         /* N, surrogate at the kinematic gap */
     double gap;                  /* mm */
     double proxy_gap;            /* mm */
@@ -150,6 +172,8 @@ typedef struct {
     int coupling_active;
     int saturated;
     int theta_clamped;
+    double theta_chain_deg;      /* deg, the linkage's angle behind the backlash */
+    double force_handle_friction;/* N, rendered friction at the handle */
 } gc_output_t;
 
 #define GC_NEWTON_ITERATIONS 3      /* proxy Newton iterations per step (warm start) */
@@ -219,7 +243,7 @@ typedef struct {
 
 typedef struct {
     int32_t w;             /* filtered velocity, counts/sample Q16 */
-    int16_t prev;          /* last count */
+    int32_t prev;          /* last position, counts Q8 (end stops between counts) */
     uint8_t has_prev;
     uint8_t material;
     uint8_t nx;            /* grid nodes of the material */
@@ -229,6 +253,17 @@ typedef struct {
     const uint16_t *x;     /* grid counts (PROGMEM on AVR) */
     const uint8_t *k;      /* log2 of each segment width (PROGMEM on AVR) */
     uint16_t y[GF_NX_MAX]; /* jaw force at the grid nodes, blended for the thickness */
+#if GF_BACKLASH_HB > 0
+    int16_t play;          /* linkage angle behind the backlash, counts */
+    uint8_t has_play;
+#endif
+#if GF_FRICTION
+    int8_t sdir;           /* friction direction: +1 closing, -1 opening, 0 not yet moved */
+#endif
+#if GF_N_PRONY > 0
+    int32_t fg_prev;       /* last coupled jaw force, mN */
+    int32_t h[GF_N_PRONY]; /* Prony states, mN Q8 */
+#endif
 } gf_state_t;
 
 /* Select material (0 mr, 1 nh, 2 le) and wall thickness (um; clamped into the tabulated range
