@@ -312,7 +312,7 @@ class FixedTables:
     fric_mu_q14: int = 0
     fric_thr_q16: int = 0  # counts/sample, Q16
     prony_b: list[int] = field(default_factory=list)  # 1 - exp(-T/tau), Q16
-    prony_g: list[int] = field(default_factory=list)  # Q12
+    prony_g: list[int] = field(default_factory=list)  # Q11
 
     @property
     def nx_max(self) -> int:
@@ -381,11 +381,9 @@ class FixedTables:
         for name, val, doc in defs:
             lines.append(f"#define {name} {val}" + (f" /* {doc} */" if doc else ""))
         if self.prony_g:
-            lines += [
-                "/* Prony terms: 1 - exp(-T / tau_i) (Q16) and g_i (Q12) */",
-                "#define GF_PRONY_B {" + ", ".join(f"{b}u" for b in self.prony_b) + "}",
-                "#define GF_PRONY_G {" + ", ".join(f"{g}u" for g in self.prony_g) + "}",
-            ]
+            lines.append("/* Prony terms: b_i = 1 - exp(-T / tau_i) (Q16) and g_i (Q11) */")
+            for i, (b, g) in enumerate(zip(self.prony_b, self.prony_g)):
+                lines += [f"#define GF_PRONY_B_{i} {b}u", f"#define GF_PRONY_G_{i} {g}"]
         lines += [
             f"#define GF_Q_RAD {self.q_rad!r} /* handle angle per count, rad */",
             "",
@@ -610,10 +608,10 @@ def build_tables(
         raise ValueError("friction parameters out of the fixed-point range")
     prony_b = [int(round(-math.expm1(-params.sample_time_s / tau) * 65536))
                for tau in params.prony_tau_s]  # fmt: skip
-    prony_g = [int(round(g * 4096)) for g in params.prony_g]
-    if any(b < 1 or b > 65535 for b in prony_b) or any(g > 65535 for g in prony_g):
+    prony_g = [int(round(g * 2048)) for g in params.prony_g]
+    if any(b < 1 or b > 65535 for b in prony_b) or any(g > 32767 for g in prony_g):
         raise ValueError(
-            "Prony terms out of the fixed-point range (need T/tau in [1.5e-5, 11], g <= 16)"
+            "Prony terms out of the fixed-point range (need T/tau in [1.5e-5, 11], g < 16)"
         )
     if prony_g and (1.0 + sum(params.prony_g)) * fg_max * 1000.0 > 65535:
         raise ValueError("rendered viscoelastic jaw force may exceed 65.5 N (uint16 mN)")

@@ -439,7 +439,7 @@ typedef struct {
 #define GF_RD16S(p) ((int16_t)GF_RD16((const uint16_t *)(p)))
 
 /* floor(a * b / 2^16), exact; two 16 x 16 -> 32 bit multiplications (cheap on the AVR) */
-static int32_t mulq16(int32_t a, uint16_t b) {
+static inline int32_t mulq16(int32_t a, uint16_t b) {
     int32_t hi = (int32_t)(int16_t)(a >> 16) * (int32_t)b;
     uint32_t lo = ((uint32_t)(uint16_t)a * (uint32_t)b) >> 16;
     return hi + (int32_t)lo;
@@ -596,17 +596,39 @@ void gf_step(gf_state_t *s, int16_t count, gf_output_t *o) {
 #if GF_N_PRONY > 0
     {
         /* quasi-linear viscoelastic rendering: h_i <- a_i h_i + dFg, Fg_r = Fg + sum g_i h_i */
-        static const uint16_t PB[GF_N_PRONY] = GF_PRONY_B, PG[GF_N_PRONY] = GF_PRONY_G;
-        int32_t fgm = fg << GF_FG_SHIFT, d = fgm - s->fg_prev, acc = 0; /* mN */
-        uint8_t i;
-        s->fg_prev = fgm;
-        for (i = 0; i < GF_N_PRONY; ++i) {
-            s->h[i] += (d << 8) - mulq16(s->h[i], PB[i]);  /* mN Q8 */
-            acc += mulq16(s->h[i], PG[i]);                  /* mN Q4 */
+        int32_t fgm = fg << GF_FG_SHIFT, acc = 0; /* mN */
+        int16_t d;
+        {
+            int32_t d32 = fgm - s->fg_prev;
+            if (d32 > 32767) d32 = 32767; /* one step changes the jaw force by far less */
+            if (d32 < -32767) d32 = -32767;
+            d = (int16_t)d32;
         }
-        fgm += acc >> 4;
+        s->fg_prev = fgm;
+        /* y_i = g_i h_i (mN Q8): y_i <- y_i - b_i y_i + g_i d, b_i = 1 - exp(-T / tau_i); the
+         * terms are unrolled with their constants (GF_PRONY_B_i Q16, GF_PRONY_G_i Q11) */
+#define GF_PRONY_TERM(i)                                                                  \
+        s->h[i] += (((int32_t)d * (int16_t)GF_PRONY_G_##i) >> 3) - mulq16(s->h[i], GF_PRONY_B_##i); \
+        acc += s->h[i];
+        GF_PRONY_TERM(0)
+#if GF_N_PRONY > 1
+        GF_PRONY_TERM(1)
+#endif
+#if GF_N_PRONY > 2
+        GF_PRONY_TERM(2)
+#endif
+#if GF_N_PRONY > 3
+        GF_PRONY_TERM(3)
+#endif
+#undef GF_PRONY_TERM
+        fgm += acc >> 8;
         if (fgm < 0) fgm = 0;
-        fi = (int32_t)(((uint32_t)(uint16_t)fgm * (uint32_t)(uint16_t)fa) >> 15);
+        {
+            /* (Fg_r mN x a Q15) >> 15 as one 16 x 16 bit product and byte shifts */
+            uint16_t f16 = (uint16_t)fgm, a16 = (uint16_t)fa;
+            uint32_t pr = (uint32_t)f16 * a16;
+            fi = (int32_t)(((pr >> 16) << 1) | ((uint16_t)pr >> 15));
+        }
         fg = fgm; /* reported in mN below */
     }
 #else
@@ -616,7 +638,7 @@ void gf_step(gf_state_t *s, int16_t count, gf_output_t *o) {
     {
         /* Coulomb + load-proportional friction at the finger in the direction of the last
          * motion faster than the threshold (closing: counts decrease, w < 0) */
-        int32_t ff = GF_FRIC_C_MN + (int32_t)(((uint32_t)fi * GF_FRIC_MU_Q14) >> 14);
+        int32_t ff = GF_FRIC_C_MN + (mulq16(fi, GF_FRIC_MU_Q14) << 2); /* mu |Fi_t|, Q14 */
         if (s->w < -GF_FRIC_THR_Q16) s->sdir = 1;
         else if (s->w > GF_FRIC_THR_Q16) s->sdir = -1;
         if (s->sdir > 0) fi += ff;

@@ -262,7 +262,7 @@ typedef struct {
 #endif
 #if GF_N_PRONY > 0
     int32_t fg_prev;       /* last coupled jaw force, mN */
-    int32_t h[GF_N_PRONY]; /* Prony states, mN Q8 */
+    int32_t h[GF_N_PRONY]; /* Prony states g_i h_i, mN Q8 */
 #endif
 } gf_state_t;
 
