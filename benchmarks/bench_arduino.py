@@ -71,6 +71,32 @@ def main(argv: list[str]) -> None:
             f"{rt.handle_pct_fs:.1e} % FS, flag mismatches {rt.flag_mismatch}",
             flush=True,
         )
+        print("augmented exports (grasprom export arduino --augmented), default tolerance:")
+        aug = {
+            "backlash 0.3 deg": dict(backlash_deg=0.3),
+            "friction 2 N + 0.1 load": dict(friction_coulomb_N=2.0,
+                                            friction_load_coefficient=0.1),
+            "Prony 1 term": dict(prony_g=(0.3,), prony_tau_s=(0.2,)),
+            "Prony 2 terms": dict(prony_g=(0.3, 0.2), prony_tau_s=(0.2, 1.0)),
+            "all of these + scale 1.3": dict(
+                backlash_deg=0.3, friction_coulomb_N=2.0, friction_load_coefficient=0.1,
+                prony_g=(0.3, 0.2), prony_tau_s=(0.2, 1.0), tissue_scale=1.3
+            ),
+        }  # fmt: skip
+        for i, (label, kw) in enumerate(aug.items()):
+            pa = ControllerParams(**kw)
+            ta = ar.build_tables(sur, pa, 0.01)
+            ca = ar.default_cases(ta, sur)
+            d = Path(tmp) / f"aug{i}"
+            run = ar.run_simavr(ar.build_avr_test(ta, ca, d), ca, d)
+            ea = ar.error_figures(ta, sur, ca, run.run)
+            sz = ar.measure_size(ta, d / "size")
+            print(
+                f"  {label:26s} flash {sz.flash_B:5d} B, RAM {sz.ram_B:4d} B, cycles max "
+                f"{int(run.cycles.max()):5d} mean {run.cycles.mean():5.0f}, handle error "
+                f"{ea.handle_pct_fs:.3f} % FS",
+                flush=True,
+            )
     print(f"({time.perf_counter() - t0:.1f} s)")
 
 
