@@ -652,6 +652,13 @@ def _add_build_parser(sub) -> None:
         help="quick run (tests): coarse tuning grid, no simavr cycle count, short co-simulation",
     )
     b.add_argument("--quiet", action="store_true", help="no per-stage progress on stderr")
+    b.add_argument(
+        "--augmented",
+        default=None,
+        metavar="JSON",
+        help="augmented model of 'grasprom diagnose': tune, export and co-simulate the "
+        "controller with its instrument effects rendered",
+    )
 
 
 def _cmd_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
@@ -673,6 +680,7 @@ def _cmd_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
         out_dir=args.out,
         fast=args.fast,
         command_line=["grasprom", *argv],
+        augmented=args.augmented,
     )
     try:
         res = run_build(opts, progress=None if args.quiet else sys.stderr)

@@ -109,6 +109,9 @@ class BuildOptions:
         cycle measurement nor host error run, shorter co-simulation.
     command_line : sequence of str, optional
         Command line recorded in the provenance block (default ``sys.argv``).
+    augmented : str or Path, optional
+        Augmented model of ``grasprom diagnose`` (``augmented_model.json``): its instrument
+        effects are rendered by the tuned controller, the FMUs and the Arduino package.
     """
 
     fe_dir: str | Path = "fe_data/default"
@@ -118,6 +121,7 @@ class BuildOptions:
     out_dir: str | Path = "build"
     fast: bool = False
     command_line: Sequence[str] | None = None
+    augmented: str | Path | None = None
 
 
 @dataclass
@@ -176,6 +180,7 @@ class BuildResult:
     surrogate: Surrogate | None = None
     tuning: TuningResult | None = None
     params: ControllerParams | None = None
+    augmentation: dict[str, Any] | None = None  # mapping info of --augmented
     arduino: ArduinoExport | None = None
     cosim: CosimResult | None = None
     notes: list[str] = field(default_factory=list)
@@ -278,6 +283,14 @@ def _stage_tune(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) -> 
     from grasprom.tuning import plot_tuning, tune
 
     base = ControllerParams(thickness_mm=opts.thickness_mm, material=opts.material)
+    if opts.augmented is not None:
+        from grasprom.diagnosis import controller_params_from_augmented, load_augmented
+
+        base, info = controller_params_from_augmented(
+            base, load_augmented(opts.augmented), res.surrogate
+        )
+        res.augmentation = {"file": str(opts.augmented),
+                            "sha256": sha256_path(opts.augmented), **info}  # fmt: skip
     kw: dict[str, Any] = {"n_theta": 61, "verify": False} if opts.fast else {}
     result = tune(res.surrogate, base, **kw)
     res.tuning = result
@@ -637,7 +650,9 @@ def provenance(res: BuildResult, opts: BuildOptions) -> dict[str, Any]:
             "material": opts.material,
             "out_dir": str(res.out_dir),
             "fast": opts.fast,
+            "augmented": None if opts.augmented is None else str(opts.augmented),
         },
+        "augmentation": res.augmentation,
         "fe_hash": getattr(res.surrogate, "fe_hash", None) or dir_hash(res.fe_dir),
         "holdout_fe_hash": dir_hash(res.holdout_dir),
         "versions": _versions(),
@@ -724,6 +739,13 @@ def write_report(res: BuildResult, opts: BuildOptions) -> Path:
         sm = res.tuning.summary
         c = sm["chosen"]
         parts.append("<h2>Controller tuning</h2>")
+        if res.augmentation is not None:
+            a = res.augmentation
+            parts.append(
+                f"<p>Augmented model {html.escape(a['file'])} (sha256 {a['sha256'][:12]}): "
+                f"rendered {html.escape(', '.join(a['rendered']) or 'none')}; measurement-only "
+                f"(not rendered) {html.escape(', '.join(a['measurement_only']) or 'none')}.</p>"
+            )
         parts.append(_table(
             ["quantity", "value"],
             [["coupling stiffness k_c (N/mm)", _fmt(c["coupling_stiffness_N_per_mm"])],
@@ -921,6 +943,9 @@ def summary(res: BuildResult) -> str:
         sm = res.tuning.summary
         lines.append(f"  controller: k_c = {sm['chosen']['coupling_stiffness_N_per_mm']:g} N/mm, "
                      f"passivity margin {sm['passivity_margin']:.3g}")  # fmt: skip
+    if res.augmentation is not None:
+        lines.append(f"  augmented model {res.augmentation['file']}: rendered "
+                     f"{', '.join(res.augmentation['rendered']) or 'none'}")  # fmt: skip
     if res.arduino is not None:
         a = res.arduino
         lines.append(f"  arduino: flash {_fmt(a.flash_B, 'd')} B, RAM {_fmt(a.ram_B, 'd')} B, "

@@ -175,6 +175,38 @@ def test_failed_stage_keeps_earlier_outputs(tmp_path):
     assert "Build failed at stage 'arduino'" in (out / "report.html").read_text()
 
 
+def test_build_renders_an_augmented_model(tmp_path):
+    """grasprom build --augmented: tuned controller, FMUs and Arduino tables render the
+    diagnosed effects; the co-simulation checks the FMU against the Python step with them."""
+    aug = {
+        "format": "grasprom-augmented-model",
+        "format_version": 1,
+        "chain": {},
+        "effects": [
+            {"name": "tissue_stiffness_scale", "params": {"scale": 1.2}},
+            {"name": "mechanism_friction",
+             "params": {"coulomb_N": 1.0, "load_coefficient": 0.05, "viscous_N_s_per_mm": 0.0}},
+            {"name": "latency", "params": {"delay_s": 0.01}},
+        ],
+    }  # fmt: skip
+    (tmp_path / "aug.json").write_text(json.dumps(aug))
+    out = tmp_path / "out"
+    res = _build(out, "--fast", "--quiet", "--augmented", str(tmp_path / "aug.json"))
+    assert res.returncode == 0, res.stderr
+    assert "rendered mechanism_friction, tissue_stiffness_scale" in res.stdout
+    ctl = json.loads((out / "controller.json").read_text())
+    assert ctl["tissue_scale"] == 1.2 and ctl["friction_coulomb_N"] == 1.0
+    cfg = (out / "arduino" / "grasprom_controller" / "grasp_fixed_config.h").read_text()
+    assert "#define GF_FRICTION 1" in cfg
+    meta = json.loads((out / "build.json").read_text())
+    prov = meta["provenance"]
+    assert prov["augmentation"]["measurement_only"] == ["latency"]
+    assert prov["options"]["augmented"].endswith("aug.json")
+    # the FMU (with the rendering) matches the Python reference in the co-simulation
+    assert meta["results"]["cosim"]["max_torque_diff_vs_python_Nm"] < 1e-9
+    assert "Augmented model" in (out / "report.html").read_text()
+
+
 def test_bad_material_is_bad_input(tmp_path):
     res = _build(tmp_path / "out", "--material", "steel")
     assert res.returncode == 2 and "steel" in res.stderr
