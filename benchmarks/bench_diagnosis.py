@@ -4,7 +4,9 @@ Random cases over every library effect alone, every pair, null cases (noise only
 outside the library (motor cogging ripple).  Each case: :func:`grasprom.synth.synth_case` makes
 ``--trials`` "real" trials with the effect identities withheld; :func:`grasprom.diagnosis.diagnose`
 sees only the trial tables and sidecars.  Prints the confusion matrix, top-1 accuracy, median
-held-out shrink, null -> none rate and the verdicts on out-of-library cases.
+held-out shrink, null -> none rate, the verdicts on out-of-library cases and the block
+attribution of single-effect cases (``where.block`` vs the block of the truth effect,
+:data:`grasprom.diagnosis.EFFECTS`), with its 3 x 3 confusion matrix.
 
 Usage::
 
@@ -100,6 +102,7 @@ def run_case(case: dict, n_trials: int = 4) -> dict:
         "rms_before_N": v["heldout_rms_before_N"],
         "rms_after_N": v["heldout_rms_after_N"],
         "where": d.report["where"],
+        "by_block": d.report["baseline"]["by_block"],
         "seconds": time.perf_counter() - t0,
     }
 
@@ -108,6 +111,31 @@ def _pred_key(r: dict) -> str:
     if r["label"] != "explained":
         return r["label"]
     return "+".join(r["predicted"])
+
+
+def truth_block(r: dict) -> str | None:
+    """Block of the chain of a single-effect case's truth effect (None for other cases)."""
+    from grasprom.diagnosis import EFFECTS
+
+    if r["kind"] != "single":
+        return None
+    return EFFECTS[r["effects"][0]].block
+
+
+def _truth_blocks(r: dict) -> set[str]:
+    from grasprom.diagnosis import EFFECTS
+
+    return {EFFECTS[e].block for e in r["effects"]}
+
+
+def block_confusion(results: list[dict]) -> dict[str, Counter]:
+    """``{truth block: Counter(where.block)}`` over the single-effect cases."""
+    out: dict[str, Counter] = {}
+    for r in results:
+        tb = truth_block(r)
+        if tb is not None:
+            out.setdefault(tb, Counter())[r["where"]["block"]] += 1
+    return out
 
 
 def summarise(results: list[dict]) -> dict:
@@ -137,6 +165,13 @@ def summarise(results: list[dict]) -> dict:
         "ool_labels": dict(Counter(r["label"] for r in ool)),
         "ool_explained_conf_ge_0.8": int(sum(r["label"] == "explained" and r["confidence"] >= 0.8
                                              for r in ool)),
+        "block_accuracy_singles": float(np.mean([r["where"]["block"] == truth_block(r)
+                                                 for r in singles])) if singles else float("nan"),
+        "block_accuracy_by_block": {b: c[b] / sum(c.values())
+                                    for b, c in block_confusion(results).items()},
+        "pairs_block_in_truth": float(np.mean([r["where"]["block"] in _truth_blocks(r)
+                                               for r in pairs])) if pairs else float("nan"),
+        "ool_blocks": dict(Counter(r["where"]["block"] for r in ool)),
         "mean_seconds": float(np.mean([r["seconds"] for r in results])),
     }
 
@@ -170,6 +205,22 @@ def print_report(results: list[dict]) -> None:
             print(f"  seed {r['seed']}: {r['label']} {'+'.join(r['predicted'])} conf "
                   f"{r['confidence']:.2f} (best candidate {'+'.join(r['best_candidate'])} explains"
                   f" {100 * max(r['explained_share'], 0):.0f} %)")
+    conf = block_confusion(results)
+    if conf:
+        from grasprom.diagnosis import BLOCKS
+
+        bcols = list(BLOCKS) + ["unknown"]
+        print("\nBlock attribution (single effects; rows = block of the truth effect, "
+              "columns = where.block)")
+        print(f"{'truth block':<24}" + "".join(f"{c:>10}" for c in bcols))
+        for b in BLOCKS:
+            c = conf.get(b, Counter())
+            print(f"{b:<24}" + "".join(f"{c.get(k, 0):>10d}" for k in bcols))
+        print("  per effect (where.block counts):")
+        for e in LIBRARY_EFFECTS:
+            c = Counter(r["where"]["block"] for r in results
+                        if r["kind"] == "single" and r["effects"] == [e])
+            print(f"    {e:<24} " + ", ".join(f"{k} {n}" for k, n in sorted(c.items())))
     s = summarise(results)
     print("\nSummary")
     print(f"  cases: {s['n_cases']}, mean {s['mean_seconds']:.1f} s per case")
@@ -182,6 +233,11 @@ def print_report(results: list[dict]) -> None:
     print(f"  null -> none: {100 * s['null_to_none']:.1f} %")
     print(f"  out-of-library verdicts: {s['ool_labels']}; explained with confidence >= 0.8: "
           f"{s['ool_explained_conf_ge_0.8']}")
+    print(f"  block accuracy (single effects, where.block = block of the truth effect): "
+          f"{100 * s['block_accuracy_singles']:.1f} %  ["
+          + ", ".join(f"{b} {100 * a:.0f} %" for b, a in s["block_accuracy_by_block"].items())
+          + f"]; pairs: block of one of the two effects {100 * s['pairs_block_in_truth']:.1f} %;"
+          f" out-of-library (cogging, in the drive): {s['ool_blocks']}")
 
 
 def main(argv=None) -> int:

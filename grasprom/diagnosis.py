@@ -942,62 +942,284 @@ class Diagnosis:
     augmented_pred: list[FloatArray] = field(repr=False, default_factory=list)
 
 
+_GAP_MECHANISM = ("backlash", "jaw_compliance")
+"""Mechanism candidates that act on the jaw gap (between the handle angle and the jaws).
+
+Without a ``gap_mm`` channel the deviation of the measured jaw force from the surrogate at the
+kinematic gap comes either from the tissue block (the force law: candidates of block ``tissue``)
+or from these (the gap the tissue sees); :func:`_jaw_path_split` decides by fitting both.
+"""
+_SMOOTH_S = 0.02
+"""Centred moving-average window of the jaw force channel in the block analysis (s)."""
+
+
+def _smooth(x: FloatArray, t: FloatArray, window_s: float = _SMOOTH_S) -> tuple[FloatArray, int]:
+    """Centred moving average over ``window_s`` (s) and its length in samples.
+
+    The raw values are kept at both ends (where the window would leave the record).
+    """
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 1e-3
+    w = max(int(round(window_s / dt)), 1)
+    if w <= 1 or x.size <= 2 * w:
+        return x.astype(float), 1
+    out = np.convolve(x, np.ones(w) / w, mode="same")
+    h = w // 2 + 1
+    out[:h] = x[:h]
+    out[-h:] = x[-h:]
+    return out, w
+
+
+def _sub_fit(fit: _Fit, keep: Sequence[str]) -> _Fit:
+    """The part of a fitted effect set made of the effects ``keep`` (same parameter values)."""
+    nl = tuple(x for (e, _), x in zip(_nl_params(fit.effects), fit.nl) if e in keep)
+    coef = np.array([c for (e, _), c in zip(_columns(fit.effects), fit.coef) if e in keep])
+    return _Fit(tuple(e for e in fit.effects if e in keep), nl, coef, float("nan"))
+
+
+def _jaw_path_split(
+    jpreps: Sequence[_Prep], surrogate: Surrogate, chain: kin.ChainParams
+) -> tuple[list[dict[str, FloatArray]], str, str]:
+    """Split the jaw-force residual at the kinematic gap between tissue and mechanism.
+
+    ``jpreps`` carry ``F = handle_force_N(F_jaw_measured, theta)`` (the measured jaw force taken
+    to the handle through the ideal chain), so their baseline residual is
+    ``g'/L3 (F_jaw - F_s(g(theta)))`` (N at the handle).  Without a gap channel two causes show
+    there: a wrong tissue force law (scale, wall thickness, rate dependence) and a wrong gap
+    (the jaws are not where the handle angle puts them: play, compliance).  Both act through
+    the surrogate differently -- a gap error is a shift along the force-gap curve that depends
+    on the load (compliance, >= 0) or on the motion direction and persists at rest (play, >= 0);
+    a force-law error scales, reshapes or relaxes the curve -- so each tissue candidate and each
+    of :data:`_GAP_MECHANISM` is fitted to it (weighted least squares on all trials, penalty
+    ``ln N`` per parameter) and the best one names the block.  If a candidate of the other block
+    then removes at least :data:`PAIR_GAIN` of the systematic residual the first leaves (and
+    lowers the penalised fit), the pair's prediction is split by effect.  What the candidates
+    leave (noise, model mismatch) stays in the block of the best single candidate.  A residual
+    within the noise (systematic ratio <= :data:`SIGNIFICANT_RHO`) is not fitted and counts as
+    tissue.
+
+    Returns
+    -------
+    list of dict
+        Per trial ``{"tissue": r, "mechanism": r}`` (N at the handle), summing to the residual.
+    str
+        The block holding the rest (``"tissue"`` or ``"mechanism"``).
+    str
+        What decided the split.
+    """
+    res0 = [p.F - p.F0 for p in jpreps]
+    n = int(sum(p.t.size for p in jpreps))
+    chi0 = float(sum(np.sum((r / p.sigma) ** 2) for r, p in zip(res0, jpreps)))
+    if chi0 / n - 1.0 <= SIGNIFICANT_RHO:
+        return (
+            [{"tissue": r, "mechanism": np.zeros_like(r)} for r in res0],
+            "tissue",
+            "jaw force at the kinematic gap within the noise",
+        )
+    lnn = math.log(max(n, 2))
+    cands = [e for e in _ORDER if EFFECTS[e].block == "tissue"] + list(_GAP_MECHANISM)
+    fits = {e: _fit(jpreps, (e,), surrogate, chain) for e in cands}
+
+    def crit(f: _Fit) -> float:
+        return f.chi2 + lnn * sum(len(EFFECTS[e].params) for e in f.effects)
+
+    best = min(cands, key=lambda e: crit(fits[e]))
+    home = EFFECTS[best].block
+    chosen = fits[best]
+    for e in cands:
+        left = chosen.chi2 - n
+        if EFFECTS[e].block == home or left <= 0:
+            continue
+        f2 = _fit(jpreps, tuple(sorted((best, e), key=_ORDER.index)), surrogate, chain)
+        if (chosen.chi2 - f2.chi2) / left >= PAIR_GAIN and crit(f2) < crit(chosen):
+            chosen = f2
+    out = []
+    for p, r in zip(jpreps, res0):
+        full = _predict(p, chosen, surrogate, chain) - p.F0
+        own = full
+        if len(chosen.effects) == 2:
+            own = _predict(p, _sub_fit(chosen, [best]), surrogate, chain) - p.F0
+        parts = {"tissue": np.zeros_like(r), "mechanism": np.zeros_like(r)}
+        parts[home] += own + (r - full)  # the best candidate and what no candidate explains
+        parts["mechanism" if home == "tissue" else "tissue"] += full - own
+        out.append(parts)
+    return out, home, f"jaw force vs. kinematic gap fitted best by {' + '.join(chosen.effects)}"
+
+
+def _sensor_split(items: Sequence[dict[str, Any]]) -> list[dict[str, FloatArray]]:
+    """Split the handle residual left by the measured jaw force into sensor and mechanism (N).
+
+    ``r = F_meas - Hc(t)``, ``Hc = handle_force_N(F_jaw_measured, theta)`` the handle force the
+    ideal chain needs for the measured jaw force.  Per trial, with one delay ``d`` (s) common to
+    all trials (searched on the grid of the latency candidate, refined by a bounded Brent
+    search), linear least squares of::
+
+        F_meas = (1 + b) Hc(t - d) + a + c t               handle force sensor: gain, offset,
+                                                           drift, delay (a first-order lag of
+                                                           the sensor shows as extra delay)
+                 + Fc s + mu s |F_jaw g'/L3| + beta v      friction of the chain (the terms of
+                                                           the mechanism_friction candidate)
+
+    The sensor part is ``(1 + b) Hc(t - d) + a + c t - Hc(t)``; the mechanism part is the rest
+    of ``r``: the friction terms and what neither explains (the chain between the jaw load cell
+    and the handle is the mechanism).
+
+    Parameters
+    ----------
+    items : sequence of dict
+        Per trial: ``t`` (analysis grid, s), ``F`` (measured handle force there, N), ``hc``
+        (``Hc`` there, N), ``raw_t`` / ``hc_raw`` (``Hc`` at the raw rate, from the smoothed jaw
+        force) and ``fric`` (the three friction columns).
+
+    Returns
+    -------
+    list of dict
+        Per trial ``{"sensor": r, "mechanism": r}`` (N), summing to ``F - hc``.
+    """
+    spec = EFFECTS["latency"].params[0]
+    grid = spec.grid
+
+    def solve(d: float, keep: bool = False) -> Any:
+        ss, out = 0.0, []
+        for it in items:
+            t = it["t"]
+            hd = np.interp(t - d, it["raw_t"], it["hc_raw"])
+            a_sen = np.column_stack([np.ones_like(t), hd, t - t[0]])
+            a = np.column_stack([a_sen, it["fric"]])
+            y = it["F"] - hd
+            c, *_ = np.linalg.lstsq(a, y, rcond=None)
+            r = y - a @ c
+            ss += float(r @ r)
+            if keep:
+                sen = hd - it["hc"] + a_sen @ c[: a_sen.shape[1]]
+                out.append({"sensor": sen, "mechanism": it["F"] - it["hc"] - sen})
+        return out if keep else ss
+
+    vals = [solve(d) for d in grid]
+    i = int(np.argmin(vals))
+    lo = grid[i - 1] if i > 0 else spec.lo
+    hi = grid[i + 1] if i < len(grid) - 1 else spec.hi
+    d = grid[i]
+    r = minimize_scalar(solve, bounds=(lo, hi), method="bounded", options={"xatol": 5e-4})
+    if r.fun < vals[i]:
+        d = float(r.x)
+    return solve(d, keep=True)
+
+
 def _block_analysis(
     preps: Sequence[_Prep], surrogate: Surrogate, chain: kin.ChainParams
-) -> dict[str, Any] | None:
-    """Residual per chain block from the optional jaw-force / gap channels (handle N)."""
-    parts: dict[str, list[FloatArray]] = {"tissue": [], "mechanism": [], "sensor": []}
-    used = False
+) -> tuple[dict[str, Any] | None, str]:
+    """Baseline residual per block of the chain from the optional ``force_jaw_N`` / ``gap_mm``.
+
+    The handle residual ``r = F_meas - F0`` (N) of every trial with either channel is split
+    exactly, sample by sample (``g'/L3 = dFi/dFg`` maps a jaw force to the handle, ``g`` the
+    kinematic gap of the measured angle, ``F_s`` the surrogate, ``Hc = handle_force_N(F_jaw,
+    theta)``; the jaw force is smoothed over :data:`_SMOOTH_S`):
+
+    ``mechanism`` (gap)
+        ``g'/L3 (F_s(g_meas) - F_s(g))``: the tissue sees another gap than the kinematic one
+        (play, compliance); only with ``gap_mm``.
+    ``tissue``
+        ``g'/L3 (F_jaw - F_s(g_meas))``: the measured jaw force differs from the surrogate at the
+        measured gap.  Without ``gap_mm``, ``g'/L3 (F_jaw - F_s(g))`` is split between tissue and
+        the gap mechanism by :func:`_jaw_path_split`.
+    ``sensor`` and ``mechanism`` (transmission)
+        ``F_meas - Hc``: the handle force the chain does not account for given the measured jaw
+        force, split by :func:`_sensor_split` into the handle force sensor (offset, gain, drift,
+        delay) and the chain (friction and the rest).
+
+    With ``gap_mm`` but no jaw force, ``F_meas - handle_force_N(F_s(g_meas), theta)`` counts as
+    tissue (it cannot be separated from friction or sensor errors there).  ``share`` is each
+    block's sum of squares less the part the white noise of its channel puts there (handle
+    sensor noise in the transmission part, the smoothed jaw load cell noise in the jaw-force
+    part), clipped at 0, over the total (raw sums of squares when all are within the noise);
+    ``rms_N`` and ``bias_N`` are of the raw parts.
+
+    Returns
+    -------
+    dict or None
+        ``{block: {"rms_N", "bias_N", "share"}}`` for the blocks of :data:`BLOCKS`; None when no
+        trial has either channel.
+    str
+        How the jaw-force residual was attributed without a gap channel ("" when not needed).
+    """
+    from dataclasses import replace
+
+    parts: dict[str, list[FloatArray]] = {b: [] for b in BLOCKS}
+    weights: list[FloatArray] = []  # 1 / s_i^2 of the diagnosis' error model (1/N^2)
+    noise_ss = {b: 0.0 for b in BLOCKS}  # expected weighted sum of squares of the noise
+    jaw_only: list[tuple[int, _Prep]] = []
+    jaw_only_noise = 0.0
+    sens: list[tuple[int, dict[str, Any]]] = []
     for p in preps:
         tr = p.trial
         if tr is None or (tr.force_jaw_N is None and tr.gap_mm is None):
             continue
-        used = True
-        idx = np.searchsorted(tr.time_s, p.t)
+        k = len(parts["tissue"])
         th = p.theta
-        gk = np.asarray(kin.gap_mm(th, chain))
-        gp = np.asarray(kin.dgap_dtheta_mm_per_rad(th, chain)) / chain.L3_mm
-        f_kin = np.asarray(surrogate.force(gk, p.thickness, p.material))
+        idx = np.searchsorted(tr.time_s, p.t)
+        gp = np.asarray(kin.dgap_dtheta_mm_per_rad(th, chain)) / chain.L3_mm  # dFi/dFg
+        g_kin = np.asarray(kin.gap_mm(th, chain))
+        f_kin = np.asarray(surrogate.force(g_kin, p.thickness, p.material))
+        for b in BLOCKS:
+            parts[b].append(np.zeros_like(th))
+        w_i = 1.0 / p.sigma**2
+        weights.append(w_i)
+        sig_h = p.noise_N if math.isfinite(p.noise_N) and p.noise_N > 0 else 0.0
+        s_model2 = np.maximum(p.sigma**2 - max(sig_h, 0.01) ** 2, 0.0)  # quantum, surrogate
+        f_gm = f_kin
         if tr.gap_mm is not None:
-            gm = tr.gap_mm[idx]
-            f_gm = np.asarray(surrogate.force(gm, p.thickness, p.material))
-            r_kin = (f_gm - f_kin) * gp  # gap error of the mechanism (compliance, play)
+            f_gm = np.asarray(surrogate.force(tr.gap_mm[idx], p.thickness, p.material))
+            parts["mechanism"][k] += (f_gm - f_kin) * gp
+        h_gm = np.asarray(kin.handle_force_N(f_gm, th, chain))
+        if tr.force_jaw_N is None:
+            parts["tissue"][k] += p.F - h_gm
+            noise_ss["tissue"] += float(np.sum(w_i * (s_model2 + sig_h**2)))
+            continue
+        fj_raw, w = _smooth(tr.force_jaw_N, tr.time_s)
+        hc_raw = np.asarray(kin.handle_force_N(fj_raw, tr.theta_deg, chain))
+        hc = hc_raw[idx]
+        sig_j = _noise_sigma(tr.force_jaw_N)
+        jaw_var = (gp * sig_j) ** 2 / w if math.isfinite(sig_j) else np.zeros_like(th)
+        jaw_noise = float(np.sum(w_i * (s_model2 + jaw_var)))
+        if tr.gap_mm is not None:
+            parts["tissue"][k] += hc - h_gm
+            noise_ss["tissue"] += jaw_noise
         else:
-            f_gm = f_kin
-            r_kin = np.zeros_like(th)
-        if tr.force_jaw_N is not None:
-            fj = tr.force_jaw_N[idx]
-            r_tis = (fj - f_gm) * gp
-            r_rest = p.F - np.asarray(kin.handle_force_N(fj, th, chain))
-            # sensor: the part of the remaining residual affine in the force, fitted jointly
-            # with direction-dependent (friction-like) terms that stay in the mechanism
-            fch = p.F - r_rest
-            A = np.column_stack(
-                [np.ones_like(r_rest), fch, p.motion_dir, p.motion_dir * np.abs(fch), p.v_mm_s]
-            )
-            c, *_ = np.linalg.lstsq(A, r_rest, rcond=None)
-            r_sen = A[:, :2] @ c[:2]
-            r_mech = r_rest - r_sen + r_kin
-        else:
-            r_tis = p.F - np.asarray(kin.handle_force_N(f_gm, th, chain))
-            r_sen = np.zeros_like(th)
-            r_mech = r_kin
-        parts["tissue"].append(r_tis)
-        parts["mechanism"].append(r_mech)
-        parts["sensor"].append(r_sen)
-    if not used:
-        return None
-    ss = {k: float(sum(float(x @ x) for x in v)) for k, v in parts.items()}
-    tot = sum(ss.values())
+            jp = replace(p, F=hc, sigma=np.sqrt(s_model2 + jaw_var + 1e-8))
+            jaw_only.append((k, jp))
+            jaw_only_noise += jaw_noise
+        fric = np.column_stack([p.motion_dir, p.motion_dir * np.abs(fj_raw[idx] * gp), p.v_mm_s])
+        item = {"t": p.t, "F": p.F, "hc": hc, "raw_t": tr.time_s, "hc_raw": hc_raw, "fric": fric}
+        sens.append((k, item))
+        noise_ss["mechanism"] += float(np.sum(w_i * sig_h**2))
+    if not parts["tissue"]:
+        return None, ""
+    how = ""
+    if jaw_only:
+        splits, home, how = _jaw_path_split([jp for _, jp in jaw_only], surrogate, chain)
+        for (k, _), sp in zip(jaw_only, splits):
+            for b, r in sp.items():
+                parts[b][k] += r
+        noise_ss[home] += jaw_only_noise
+    if sens:
+        for (k, _), sp in zip(sens, _sensor_split([it for _, it in sens])):
+            for b, r in sp.items():
+                parts[b][k] += r
+    ss = {b: float(sum(float(w_i @ (x * x)) for x, w_i in zip(v, weights)))
+          for b, v in parts.items()}
+    sys_ss = {b: max(ss[b] - noise_ss[b], 0.0) for b in BLOCKS}
+    tot = sum(sys_ss.values())
+    if tot <= 0:
+        sys_ss, tot = ss, sum(ss.values())
     out = {}
-    for k, v in parts.items():
+    for b, v in parts.items():
         r = np.concatenate(v)
-        out[k] = {
+        out[b] = {
             "rms_N": float(math.sqrt(r @ r / r.size)),
             "bias_N": float(r.mean()),
-            "share": ss[k] / tot if tot > 0 else 0.0,
+            "share": sys_ss[b] / tot if tot > 0 else 0.0,
         }
-    return out
+    return out, how
 
 
 def _trial_conditions(preps: Sequence[_Prep], chain: kin.ChainParams) -> list[dict[str, Any]]:
@@ -1127,8 +1349,9 @@ def diagnose(
             {"trial": p.trial.name, "trial_id": p.trial.trial_id, **c, **_stats(r, total_ss)}
             for p, c, r in zip(preps, conds, res0)
         ],
-        "by_block": _block_analysis(preps, surrogate, chain),
+        "by_block": None,
     }
+    baseline["by_block"], block_how = _block_analysis(preps, surrogate, chain)
     where_phase = max(PHASES, key=lambda k: baseline["by_phase"][k]["share"])
 
     # ---- candidates
@@ -1272,7 +1495,9 @@ def diagnose(
     if baseline["by_block"] is not None:
         bb = baseline["by_block"]
         block = max(BLOCKS, key=lambda k: bb[k]["share"])
-        block_source = "measured channels (force_jaw_N / gap_mm)"
+        block_source = "measured channels (force_jaw_N / gap_mm)" + (
+            f"; {block_how}" if block_how else ""
+        )
     elif label == "explained":
         block = EFFECTS[chosen[0]].block
         block_source = "block of the explaining effect"

@@ -134,20 +134,53 @@ SINGLE_CASES = [
 
 
 def test_blind_small_benchmark(surrogate):
-    correct, shrinks = 0, []
+    correct, shrinks, blocks = 0, [], []
     for eff, seed in SINGLE_CASES:
         d = _diagnose([eff], seed, surrogate)
         v = d.report["verdict"]
         correct += v["label"] == "explained" and v["effects"] == [eff]
         shrinks.append(v["shrink"])
         assert 0.0 <= v["shrink"] <= 1.0 and 0.0 <= v["confidence"] <= 1.0
+        # where.block from the jaw load cell: the block of the truth effect (three of each of
+        # tissue and mechanism, two sensor cases); the block-attribution figure of
+        # benchmarks/bench_diagnosis.py is 48/48 single cases (seed 2024, 96/96 on seeds 11, 777)
+        assert d.report["where"]["block_source"].startswith("measured channels")
+        blocks.append((eff, d.report["where"]["block"], dg.EFFECTS[eff].block))
     assert correct >= 7, correct
+    assert all(b == tb for _, b, tb in blocks), blocks
     assert np.median(shrinks) >= 0.7
     for seed in (201, 202):
         v = _diagnose([], seed, surrogate).report["verdict"]
         assert v["label"] == "none"
     v = _diagnose(["motor_cogging"], 301, surrogate).report["verdict"]
     assert not (v["label"] == "explained" and v["confidence"] >= 0.8)
+
+
+def test_block_attribution_with_gap_channel(surrogate):
+    """With a ``gap_mm`` channel the jaw-force residual splits directly: a jaw compliance
+    (the real gap opens by the jaw deflection) is mechanism, a wall-thickness error (the gap is
+    right, the force law is not) is tissue.  A trial without either channel has no block
+    analysis."""
+    cases = [("jaw_compliance", 104, "mechanism"), ("thickness_error", 105, "tissue")]
+    for eff, seed, block in cases:
+        case = synth_case([eff], seed=seed, surrogate=surrogate, n_trials=2)
+        trials = []
+        for i, t in enumerate(case.trials):
+            df = t.data.copy()
+            g = np.asarray(kin.gap_mm(df["theta_deg"].to_numpy(), CHAIN))
+            if eff == "jaw_compliance":  # the generator's deflection c F^p at the jaw force
+                p = case.truth["effects"][eff]
+                c = p["deflection_at_20N_mm"] / 20.0 ** p["exponent"]
+                g = g + c * np.clip(df["force_jaw_N"].to_numpy(), 0.0, None) ** p["exponent"]
+            df["gap_mm"] = g
+            trials.append(dg.validate_trial(df, t.sidecar, f"t{i}.csv", CHAIN, surrogate))
+        preps = [dg._prepare(tr, surrogate, CHAIN) for tr in trials]
+        bb, how = dg._block_analysis(preps, surrogate, CHAIN)
+        assert how == ""  # measured gap: no model decides the split
+        assert max(dg.BLOCKS, key=lambda k: bb[k]["share"]) == block, bb
+        assert bb[block]["share"] > 0.95, bb
+    bare = dg.validate_trial(_good_df(), SIDE, "t.csv", CHAIN, surrogate)
+    assert dg._block_analysis([dg._prepare(bare, surrogate, CHAIN)], surrogate, CHAIN) == (None, "")
 
 
 def test_pair_and_report_schema(surrogate, tmp_path):
