@@ -1168,8 +1168,19 @@ def _block_analysis(
         s_model2 = np.maximum(p.sigma**2 - max(sig_h, 0.01) ** 2, 0.0)  # quantum, surrogate
         f_gm = f_kin
         if tr.gap_mm is not None:
-            f_gm = np.asarray(surrogate.force(tr.gap_mm[idx], p.thickness, p.material))
+            # the gap sensor's noise reaches the force through the surrogate's stiffness
+            # (hundreds of N/mm once the walls meet): smooth it as the jaw force, and count what
+            # is left of it in the noise of both parts it enters (mechanism +, tissue -)
+            g_sm, wg = _smooth(tr.gap_mm, tr.time_s)
+            g_meas = g_sm[idx]
+            f_gm = np.asarray(surrogate.force(g_meas, p.thickness, p.material))
             parts["mechanism"][k] += (f_gm - f_kin) * gp
+            sig_g = _noise_sigma(tr.gap_mm)
+            if math.isfinite(sig_g) and sig_g > 0:
+                k_s = np.asarray(surrogate.stiffness(g_meas, p.thickness, p.material))
+                gap_noise = float(np.sum(w_i * (gp * k_s * sig_g) ** 2 / wg))
+                noise_ss["mechanism"] += gap_noise
+                noise_ss["tissue"] += gap_noise
         h_gm = np.asarray(kin.handle_force_N(f_gm, th, chain))
         if tr.force_jaw_N is None:
             parts["tissue"][k] += p.F - h_gm

@@ -36,7 +36,13 @@ motor_cogging               **outside the library**: handle-force ripple periodi
 
 Measured channels: ``theta_deg`` quantised by a 14-bit motor encoder through the 5.41:1 pulley
 (0.0041 deg), ``force_handle_N`` with white noise (0.03-0.12 N), ``force_jaw_N`` (a jaw load
-cell, optional) with its own noise.  Time base 1 kHz.
+cell, optional, on by default) with its own noise, and ``gap_mm`` (optional, off by default): the
+jaw gap where the tissue is, as a non-contact laser triangulation displacement sensor across the
+jaw tips would measure it -- the kinematic gap of the linkage angle after the truth backlash
+(play on the rod stroke) plus the truth jaw deflection ``c F^p`` at the true jaw force, with white
+noise of 5-10 um rms (:data:`GAP_NOISE_MM`) and a 1 um resolution (:data:`GAP_RESOLUTION_MM`).
+The gap noise comes from its own random stream (seeded from the case seed), so switching the
+channel on or off changes no other value of a case.  Time base 1 kHz.
 """
 
 from __future__ import annotations
@@ -77,6 +83,12 @@ SYNTH_EFFECTS = LIBRARY_EFFECTS + OUT_OF_LIBRARY_EFFECTS
 SAMPLE_RATE_HZ = 1000.0
 ENCODER_COUNTS_PER_REV = 16384  # 14-bit motor encoder
 PULLEY_RADIUS_MM = 10.0
+GAP_NOISE_MM = (0.005, 0.010)
+"""Range of the white noise (rms, mm) of the ``gap_mm`` channel (drawn per case)."""
+GAP_RESOLUTION_MM = 0.001
+"""Resolution of the ``gap_mm`` channel (mm)."""
+_GAP_STREAM = 0x6A9
+"""Second seed word of the ``gap_mm`` channel's own random stream."""
 
 
 @dataclass
@@ -254,7 +266,13 @@ def _simulate_truth(
     rng: np.random.Generator,
     noise_N: float,
     jaw_noise_N: float,
+    gap_noise: tuple[np.random.Generator, float] | None = None,
 ) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """One trial: measured table and truth info.
+
+    ``gap_noise`` = (its own generator, rms in mm) adds the ``gap_mm`` channel; ``rng`` is not
+    touched by it.
+    """
     dt = 1.0 / SAMPLE_RATE_HZ
     lo_t, hi_t = surrogate.thickness_range(spec.material)
     t_real = spec.thickness_mm
@@ -350,6 +368,16 @@ def _simulate_truth(
         }
     )
     info = {"thickness_real_mm": t_real, "theta_min_deg": theta_min}
+    if gap_noise is not None:
+        # the gap the tissue sees: kinematic gap after the play + the stiffening jaw deflection
+        # at the true jaw force (rate-dependent part included)
+        g_true = g_kin.copy()
+        if jc is not None:
+            g_true = g_true + c_jaw * np.power(np.maximum(f_jaw, 0.0), jc["exponent"])
+        grng, gsig = gap_noise
+        g_meas = g_true + gsig * grng.standard_normal(n)
+        df["gap_mm"] = GAP_RESOLUTION_MM * np.round(g_meas / GAP_RESOLUTION_MM)
+        info["max_jaw_deflection_mm"] = float(np.max(g_true - g_kin))
     return df, info
 
 
@@ -362,6 +390,7 @@ def synth_case(
     chain: kin.ChainParams | None = None,
     material: str | None = None,
     jaw_load_cell: bool = True,
+    gap_channel: bool = False,
 ) -> SynthCase:
     """Synthesise the trials of one blind case.
 
@@ -382,6 +411,10 @@ def synth_case(
         Material key; random among the surrogate's by default.
     jaw_load_cell : bool
         Include the ``force_jaw_N`` channel.
+    gap_channel : bool
+        Include the ``gap_mm`` channel (measured jaw gap at the tissue: kinematic gap after the
+        truth backlash + truth jaw deflection ``c F^p`` + 5-10 um rms noise from a separate
+        random stream, so every other value of the case is the same with and without it).
 
     Returns
     -------
@@ -404,6 +437,10 @@ def synth_case(
     t_b = round(float(rng.uniform(max(lo_t, 1.3), min(hi_t, 1.8))), 2)
     noise = float(rng.uniform(0.03, 0.12))
     jaw_noise = float(rng.uniform(0.03, 0.1))
+    gap_noise = None
+    if gap_channel:
+        grng = np.random.default_rng([seed, _GAP_STREAM])
+        gap_noise = (grng, float(grng.uniform(*GAP_NOISE_MM)))
     trials = []
     infos = []
     for i in range(n_trials):
@@ -418,7 +455,9 @@ def synth_case(
             post_s=float(rng.uniform(0.2, 0.4)),
             target_jaw_N=float(rng.uniform(6.0, 20.0)),
         )
-        df, info = _simulate_truth(spec, truth_effects, surrogate, chain, rng, noise, jaw_noise)
+        df, info = _simulate_truth(
+            spec, truth_effects, surrogate, chain, rng, noise, jaw_noise, gap_noise
+        )
         if not jaw_load_cell:
             df = df.drop(columns=["force_jaw_N"])
         side = {
@@ -440,6 +479,8 @@ def synth_case(
         "jaw_noise_N": jaw_noise,
         "trials": infos,
     }
+    if gap_noise is not None:
+        truth["gap_noise_mm"] = gap_noise[1]
     return SynthCase(trials, truth)
 
 
@@ -465,7 +506,7 @@ def write_case(case: SynthCase, out_dir: str | Path) -> list[Path]:
 
 
 def main_synth(argv: Sequence[str] | None = None) -> int:
-    """``grasprom synth --out DIR [--effect NAME[,NAME]] [--seed N] [--trials N]``.
+    """``grasprom synth --out DIR [--effect NAME[,NAME]] [--seed N] [--trials N] [--gap-channel]``.
 
     Writes synthetic trials (CSV + JSON sidecars) and the withheld ``truth.json`` into ``DIR``.
 
@@ -489,6 +530,11 @@ def main_synth(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--trials", type=int, default=4, help="number of trials (default 4)")
     p.add_argument("--material", default=None, help="mr, nh or le (default random)")
     p.add_argument("--no-jaw-cell", action="store_true", help="omit the force_jaw_N channel")
+    p.add_argument(
+        "--gap-channel",
+        action="store_true",
+        help="add a measured jaw gap gap_mm (laser sensor at the jaw tips, 5-10 um rms)",
+    )
     src = p.add_mutually_exclusive_group()
     src.add_argument("--surrogate", default=None, metavar="FILE", help="surrogate JSON")
     src.add_argument("--fe", default=None, metavar="DIR", help="FE sweep (default shipped)")
@@ -519,6 +565,7 @@ def main_synth(argv: Sequence[str] | None = None) -> int:
             surrogate=surrogate,
             material=args.material,
             jaw_load_cell=not args.no_jaw_cell,
+            gap_channel=args.gap_channel,
         )
     except (OSError, ValueError) as exc:
         print(f"grasprom synth: {exc}", file=sys.stderr)

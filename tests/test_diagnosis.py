@@ -183,6 +183,52 @@ def test_block_attribution_with_gap_channel(surrogate):
     assert dg._block_analysis([dg._prepare(bare, surrogate, CHAIN)], surrogate, CHAIN) == (None, "")
 
 
+def test_synth_gap_channel_and_block(surrogate):
+    """``synth_case(gap_channel=True)``: the measured ``gap_mm`` is the kinematic gap of the
+    measured angle plus the truth jaw deflection ``c F^p`` (``truth.json`` parameters, at the
+    measured jaw force) to within the sensor noise -- 5-10 um rms, ``truth["gap_noise_mm"]`` --
+    and the jaw-compliance deflection (0.05-0.25 mm) is far above it; a tissue effect leaves the
+    gap kinematic.  The other channels are those of the case without the gap channel.  The
+    diagnosis then attributes the block from the measured gap (no candidate fit decides)."""
+    cases = [("jaw_compliance", 104, "mechanism"), ("thickness_error", 105, "tissue")]
+    for eff, seed, block in cases:
+        case = synth_case([eff], seed=seed, surrogate=surrogate, n_trials=3, gap_channel=True)
+        plain = synth_case([eff], seed=seed, surrogate=surrogate, n_trials=3)
+        sig = case.truth["gap_noise_mm"]
+        assert 0.005 <= sig <= 0.010
+        assert "gap_noise_mm" not in plain.truth
+        for t, t0 in zip(case.trials, plain.trials):
+            df = t.data
+            assert df.drop(columns=["gap_mm"]).equals(t0.data)  # no other value moves
+            g_kin = np.asarray(kin.gap_mm(df["theta_deg"].to_numpy(), CHAIN))
+            fj = np.clip(df["force_jaw_N"].to_numpy(), 0.0, None)
+            defl = np.zeros_like(g_kin)
+            if eff == "jaw_compliance":
+                p = case.truth["effects"][eff]
+                c = p["deflection_at_20N_mm"] / 20.0 ** p["exponent"]
+                defl = c * fj ** p["exponent"]
+                assert defl.max() > 5 * sig
+                # slope of the measured gap opening against F^p on the loaded samples = c
+                on = fj > 1.0
+                x = fj[on] ** p["exponent"]
+                y = df["gap_mm"].to_numpy()[on] - g_kin[on]
+                assert abs(float(x @ y / (x @ x)) / c - 1.0) < 0.03
+            r = df["gap_mm"].to_numpy() - g_kin - defl
+            # noise, 1 um resolution, 0.0041 deg encoder quantum of the angle, jaw-force noise
+            assert abs(float(r.mean())) < 0.003, r.mean()
+            assert float(np.sqrt(np.mean(r * r))) < 1.2 * sig, (np.sqrt(np.mean(r * r)), sig)
+        trials = _trials(case, surrogate)
+        assert all(tr.gap_mm is not None for tr in trials)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            d = dg.diagnose(trials, surrogate, CHAIN)
+        w = d.report["where"]
+        assert w["block"] == block, (eff, d.report["baseline"]["by_block"])
+        assert w["block_source"] == "measured channels (force_jaw_N / gap_mm)"  # no model fit
+        assert d.report["baseline"]["by_block"][block]["share"] > 0.95
+        assert d.report["verdict"]["effects"] == [eff]
+
+
 def test_pair_and_report_schema(surrogate, tmp_path):
     d = _diagnose(["mechanism_friction", "latency"], 401, surrogate)
     r = d.report
@@ -262,6 +308,11 @@ def test_cli_synth_then_diagnose(tmp_path, surrogate, capsys):
     assert (tmp_path / "o" / "residual_by_phase.png").is_file()
     assert (tmp_path / "o" / "trial_01.png").is_file()
     assert main_synth(["--out", str(tmp_path / "e"), "--effect", "nope"]) == 2
+    rc = main_synth(["--out", str(tmp_path / "g"), "--effect", "backlash", "--seed", "5",
+                     "--trials", "1", "--gap-channel", "--surrogate", str(sur)])
+    assert rc == 0
+    tr = dg.load_trial(tmp_path / "g" / "trial_01.csv", CHAIN, surrogate)
+    assert tr.gap_mm is not None and tr.force_jaw_N is not None
 
 
 def test_write_case_roundtrip(tmp_path, surrogate):
@@ -269,3 +320,7 @@ def test_write_case_roundtrip(tmp_path, surrogate):
     paths = write_case(case, tmp_path)
     tr = dg.load_trial(paths[0], CHAIN, surrogate)
     assert tr.force_jaw_N is None and tr.time_s.size > 1000
+    assert tr.gap_mm is None  # off by default
+    case = synth_case([], seed=9, surrogate=surrogate, n_trials=1, gap_channel=True)
+    tr = dg.load_trial(write_case(case, tmp_path / "g")[0], CHAIN, surrogate)
+    assert np.max(np.abs(tr.gap_mm - case.trials[0].data["gap_mm"].to_numpy())) < 1e-4
