@@ -837,13 +837,18 @@ def run_simavr(
     elf: str | Path, cases: Sequence[TestCase], directory: str | Path, mcu: str = MCU
 ) -> AvrRun:
     """Run a test firmware under libsimavr; outputs and cycles per ``gf_step`` call."""
-    d = Path(directory)
+    data, cycles = _simavr_bytes(elf, Path(directory), mcu)
+    return AvrRun(parse_output(data, cases), cycles)
+
+
+def _simavr_bytes(elf: str | Path, d: Path, mcu: str) -> tuple[bytes, NDArray]:
+    """Run a test firmware under the libsimavr harness: the bytes it reported and the cycles
+    of every marked step (the first, empty measurement subtracted as calibration)."""
     harness = build_harness(d)
     out, cyc = d / "avr_out.bin", d / "avr_cycles.txt"
     _run([str(harness), str(elf), mcu, str(F_CPU_HZ), str(out), str(cyc)], "simavr run")
     cycles = np.loadtxt(cyc, dtype=np.int64, ndmin=1)
-    calib = cycles[0]
-    return AvrRun(parse_output(out.read_bytes(), cases), cycles[1:] - calib)
+    return out.read_bytes(), cycles[1:] - cycles[0]
 
 
 @dataclass
@@ -1047,11 +1052,7 @@ def run_runtime_avr(
         "rt_size_main",
         flags,
     )
-    harness = build_harness(d)
-    out, cyc = d / "rt_out.bin", d / "rt_cycles.txt"
-    _run([str(harness), str(elf), mcu, str(F_CPU_HZ), str(out), str(cyc)], "simavr run")
-    cycles = np.loadtxt(cyc, dtype=np.int64, ndmin=1)
-    data = out.read_bytes()
+    data, cycles = _simavr_bytes(elf, d, mcu)
     pos, outs = 0, []
     fs = params.torque_limit_Nm / (params.pulley_radius_mm * 1e-3)
     q = encoder_quantum_rad(params)
@@ -1081,7 +1082,7 @@ def run_runtime_avr(
     if pos != len(data):
         raise RuntimeError(f"run-time core output has {len(data)} bytes, expected {pos}")
     return RuntimeAvrRun(
-        outs, cycles[1:] - cycles[0], flash, 100.0 * e_h / fs, e_j, mism
+        outs, cycles, flash, 100.0 * e_h / fs, e_j, mism
     )
 
 
