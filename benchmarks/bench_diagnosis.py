@@ -1,12 +1,12 @@
 """Blind benchmark of the sim-to-real gap diagnosis (issue 7).
 
 Random cases over every library effect alone, every pair, null cases (noise only) and an effect
-outside the library (motor cogging ripple).  Each case: :func:`grasprom.synth.synth_case` makes
-``--trials`` "real" trials with the effect identities withheld; :func:`grasprom.diagnosis.diagnose`
+outside the library (motor cogging ripple).  Each case: :func:`grasprom.gap.synth.synth_case` makes
+``--trials`` "real" trials with the effect identities withheld; :func:`grasprom.gap.diagnosis.diagnose`
 sees only the trial tables and sidecars.  Prints the confusion matrix, top-1 accuracy, median
 held-out shrink, null -> none rate, the verdicts on out-of-library cases and the block
 attribution of single-effect cases (``where.block`` vs the block of the truth effect,
-:data:`grasprom.diagnosis.EFFECTS`), with its 3 x 3 confusion matrix.
+:data:`grasprom.gap.diagnosis.EFFECTS`), with its 3 x 3 confusion matrix.
 
 ``--gap-channel`` gives every trial the measured jaw gap ``gap_mm`` as well
 (``synth_case(gap_channel=True)``: kinematic gap after the truth play + truth jaw deflection +
@@ -41,7 +41,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from grasprom.synth import LIBRARY_EFFECTS, OUT_OF_LIBRARY_EFFECTS  # noqa: E402
+from grasprom.gap.synth import LIBRARY_EFFECTS, OUT_OF_LIBRARY_EFFECTS  # noqa: E402
 
 _SURROGATE = None
 
@@ -82,9 +82,9 @@ def run_case(case: dict, n_trials: int = 4, gap_channel: bool = False) -> dict:
 
     ``gap_channel`` adds the measured jaw gap ``gap_mm`` to the synthetic trials.
     """
-    from grasprom import diagnosis as dg
-    from grasprom import kinematics as kin
-    from grasprom.synth import synth_case
+    from grasprom.gap import diagnosis as dg
+    from grasprom.chain import kinematics as kin
+    from grasprom.gap.synth import synth_case
 
     s = _surrogate()
     chain = kin.ChainParams()
@@ -127,7 +127,7 @@ def _pred_key(r: dict) -> str:
 
 def truth_block(r: dict) -> str | None:
     """Block of the chain of a single-effect case's truth effect (None for other cases)."""
-    from grasprom.diagnosis import EFFECTS
+    from grasprom.gap.diagnosis import EFFECTS
 
     if r["kind"] != "single":
         return None
@@ -135,7 +135,7 @@ def truth_block(r: dict) -> str | None:
 
 
 def _truth_blocks(r: dict) -> set[str]:
-    from grasprom.diagnosis import EFFECTS
+    from grasprom.gap.diagnosis import EFFECTS
 
     return {EFFECTS[e].block for e in r["effects"]}
 
@@ -219,7 +219,7 @@ def print_report(results: list[dict]) -> None:
                   f" {100 * max(r['explained_share'], 0):.0f} %)")
     conf = block_confusion(results)
     if conf:
-        from grasprom.diagnosis import BLOCKS
+        from grasprom.gap.diagnosis import BLOCKS
 
         bcols = list(BLOCKS) + ["unknown"]
         print("\nBlock attribution (single effects; rows = block of the truth effect, "

@@ -16,8 +16,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from grasprom.datafiles import load_sweep
-from grasprom.sweep import build_grid, run_sweep
+from grasprom.fe.datafiles import load_sweep
+from grasprom.fe.sweep import build_grid, run_sweep
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -7,13 +7,13 @@ Usage::
 
 The effect is hidden from the diagnosis (it only reads the trial CSVs and sidecars); the truth is
 printed at the end for comparison.  One more trial of the same case is synthesised and *not*
-given to the diagnosis: its measured handle angle drives :func:`grasprom.controller.simulate`
+given to the diagnosis: its measured handle angle drives :func:`grasprom.control.controller.simulate`
 twice, with the plain controller and with the augmented model rendered
-(:func:`grasprom.diagnosis.controller_params_from_augmented`; stiff coupling, no damping, no
+(:func:`grasprom.gap.diagnosis.controller_params_from_augmented`; stiff coupling, no damping, no
 encoder, so that the controller reproduces the static chain), and the RMS of simulated -
 measured handle force (N) is printed before / after (sensor effects of the model, which the
 controller does not render, applied to the simulated force with
-:func:`grasprom.diagnosis.measured_handle_force_N`).  Runs in well under 30 s.
+:func:`grasprom.gap.diagnosis.measured_handle_force_N`).  Runs in well under 30 s.
 """
 
 from __future__ import annotations
@@ -32,11 +32,11 @@ import pandas as pd
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from grasprom import diagnosis as dg  # noqa: E402
-from grasprom import kinematics as kin  # noqa: E402
-from grasprom.controller import ControllerParams, simulate  # noqa: E402
+from grasprom.gap import diagnosis as dg  # noqa: E402
+from grasprom.chain import kinematics as kin  # noqa: E402
+from grasprom.control.controller import ControllerParams, simulate  # noqa: E402
 from grasprom.surrogate import Surrogate  # noqa: E402
-from grasprom.synth import SYNTH_EFFECTS, synth_case, write_case  # noqa: E402
+from grasprom.gap.synth import SYNTH_EFFECTS, synth_case, write_case  # noqa: E402
 
 
 def stiff_params(thickness_mm: float, material: str) -> ControllerParams:
@@ -45,7 +45,7 @@ def stiff_params(thickness_mm: float, material: str) -> ControllerParams:
     Coupling 1e5 N/mm (softens a tissue of stiffness ``k_t`` by ``k_t / (k_c + k_t)`` < 0.3 %),
     no damping, no encoder quantisation, no torque saturation (100 N m), the return spring
     rendered, and the friction direction threshold at the diagnosis' "still" speed
-    (:data:`grasprom.diagnosis.STILL_DEG_PER_S` of handle, in mm/s at the finger).
+    (:data:`grasprom.gap.diagnosis.STILL_DEG_PER_S` of handle, in mm/s at the finger).
     """
     return ControllerParams(
         thickness_mm=thickness_mm,
@@ -65,7 +65,7 @@ def replay_heldout(trial: dg.Trial, augmented_path: Path, surrogate: Surrogate) 
 
     Parameters
     ----------
-    trial : grasprom.diagnosis.Trial
+    trial : grasprom.gap.diagnosis.Trial
         The held-out trial (its angle drives the simulation, its handle force is the reference).
     augmented_path : Path
         ``augmented_model.json`` of the diagnosis.

@@ -1,6 +1,6 @@
 """Co-simulate the exported controller FMU with a device + hand model (fmpy, Python loop).
 
-The FMU (exported here with :func:`grasprom.fmu.export_fmu`) renders the tissue through the
+The FMU (exported here with :func:`grasprom.export.fmu.export_fmu`) renders the tissue through the
 motor torque; the device is the handle, a rotational inertia ``J`` about its pivot with viscous
 friction ``b`` and end stops, pushed closed by the hand (force ``F_hand(t)`` at the grip radius
 ``L3``: ramp up, hold, release) and pushed open by the cable force ``torque / r`` of the motor:
@@ -27,9 +27,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from grasprom.cli import load_surrogate  # noqa: E402
-from grasprom.controller import ControllerParams  # noqa: E402
-from grasprom.fmu import export_fmu  # noqa: E402
+from grasprom.surrogate import load_surrogate  # noqa: E402
+from grasprom.control.controller import ControllerParams  # noqa: E402
+from grasprom.export.fmu import export_fmu  # noqa: E402
 from grasprom.pipeline import hand_force_N  # noqa: E402
 
 J = 2e-4  # kg m^2, handle + reflected motor inertia at the pivot

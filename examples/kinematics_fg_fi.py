@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from grasprom import kinematics as kin
+from grasprom.chain import kinematics as kin
 
 
 def main(argv: list[str] | None = None) -> int:

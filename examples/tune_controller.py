@@ -1,6 +1,6 @@
 """Passivity tuning of the impedance controller over the shipped FE sweep.
 
-Builds the surrogate from ``fe_data/default``, runs :func:`grasprom.tuning.tune` (Colgate /
+Builds the surrogate from ``fe_data/default``, runs :func:`grasprom.control.tuning.tune` (Colgate /
 Abbott-Okamura bounds, Z-width, python-control poles and margins, simulation check), prints the
 report and writes ``controller.json``, ``tuning.json``, ``tuning.txt`` and the plots into
 ``--out``.  Takes about 10 s.
@@ -15,9 +15,9 @@ import warnings
 from dataclasses import replace
 from pathlib import Path
 
-from grasprom.controller import ControllerParams
+from grasprom.control.controller import ControllerParams
 from grasprom.surrogate import Surrogate
-from grasprom.tuning import DeviceParams, tune, write_outputs
+from grasprom.control.tuning import DeviceParams, tune, write_outputs
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -33,13 +33,11 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from grasprom import __version__
-
-DEFAULT_SWEEP_DIR = "fe_data/default"
-"""Sweep shipped with the package source, read by ``grasprom report`` by default."""
+from grasprom.paths import DEFAULT_HOLDOUT_DIR, DEFAULT_SWEEP_DIR, resolve_data_dir
 
 
 def _build_parser() -> argparse.ArgumentParser:
-    from grasprom.sweep import KNOWN_MATERIALS, spec_defaults
+    from grasprom.fe.sweep import KNOWN_MATERIALS, spec_defaults
 
     d = spec_defaults()
     p = argparse.ArgumentParser(
@@ -206,10 +204,10 @@ def _build_parser() -> argparse.ArgumentParser:
 def _delegated(name: str):
     """Entry point of a subcommand that parses its own arguments."""
     if name == "diagnose":
-        from grasprom.diagnosis import main_diagnose
+        from grasprom.gap.diagnosis import main_diagnose
 
         return main_diagnose
-    from grasprom.synth import main_synth
+    from grasprom.gap.synth import main_synth
 
     return main_synth
 
@@ -248,33 +246,13 @@ def _add_surrogate_source(parser) -> None:
     )
 
 
-def load_surrogate(surrogate: str | None, fe: str | None):
-    """Load a surrogate file, or build one from an FE sweep (default: the shipped sweep)."""
-    from grasprom.surrogate import Surrogate
-
-    if surrogate:
-        return Surrogate.load(surrogate)
-    return Surrogate.build(resolve_sweep_dir(fe or DEFAULT_SWEEP_DIR))
-
-
-def resolve_sweep_dir(directory: str) -> Path:
-    """``directory``; the shipped default sweep is also found from outside the source tree."""
-    path = Path(directory)
-    if directory == DEFAULT_SWEEP_DIR and not path.is_dir():
-        # not run from the source tree: fall back to the checkout holding this package
-        shipped = Path(__file__).resolve().parents[1] / DEFAULT_SWEEP_DIR
-        if shipped.is_dir():
-            return shipped
-    return path
-
-
 def _augment_params(cmd: str, path: str, params, sur) -> tuple[object, dict]:
     """Load ``--augmented`` and map it onto ``params``; prints what is rendered (stdout) and
     the mapping's warnings (stderr).  Returns the new parameters and the mapping info with the
     file and its sha256."""
     import hashlib
 
-    from grasprom.diagnosis import controller_params_from_augmented, load_augmented
+    from grasprom.gap.diagnosis import controller_params_from_augmented, load_augmented
 
     model = load_augmented(path)
     params, info = controller_params_from_augmented(params, model, sur)
@@ -309,7 +287,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
     import pandas as pd
 
-    from grasprom.controller import ControllerParams, load_params, simulate
+    from grasprom.control.controller import ControllerParams, load_params, simulate
 
     try:
         params = load_params(args.controller) if args.controller else ControllerParams()
@@ -323,13 +301,15 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             traj = pd.read_csv(args.trajectory)
         except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
             raise ValueError(f"{args.trajectory}: cannot read trajectory ({exc})") from None
+        from grasprom.surrogate import load_surrogate
+
         sur = load_surrogate(args.surrogate, args.fe)
         aug = None
         if args.augmented:
             params, aug = _augment_params("simulate", args.augmented, params, sur)
         out = simulate(traj, params, sur, source=args.trajectory)
         if aug and aug["measurement_only"]:
-            from grasprom.diagnosis import measured_handle_force_N
+            from grasprom.gap.diagnosis import measured_handle_force_N
 
             out["force_handle_measured_N"] = measured_handle_force_N(
                 out["time_s"].to_numpy(), out["force_handle_N"].to_numpy(), aug["measurement"]
@@ -360,8 +340,8 @@ def _error(cmd: str, msg: object) -> int:
 
 
 def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
-    from grasprom.datafiles import CorruptCaseError
-    from grasprom.sweep import SweepInputError, build_grid, default_runner, run_sweep
+    from grasprom.fe.datafiles import CorruptCaseError
+    from grasprom.fe.sweep import SweepInputError, build_grid, default_runner, run_sweep
 
     try:
         specs = build_grid(
@@ -399,10 +379,10 @@ def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from grasprom.datafiles import CorruptCaseError
-    from grasprom.report import make_report
+    from grasprom.fe.datafiles import CorruptCaseError
+    from grasprom.fe.report import make_report
 
-    directory = resolve_sweep_dir(args.directory)
+    directory = resolve_data_dir(args.directory)
     try:
         files = make_report(directory, args.out, logy=args.logy)
     except (FileNotFoundError, CorruptCaseError) as exc:
@@ -415,7 +395,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
 def _cmd_surrogate(args: argparse.Namespace) -> int:
     import warnings
 
-    from grasprom.datafiles import CorruptCaseError
+    from grasprom.fe.datafiles import CorruptCaseError
     from grasprom.surrogate import (
         BuildParams,
         Surrogate,
@@ -501,9 +481,9 @@ def _cmd_tune(args: argparse.Namespace) -> int:
     import math
     import warnings
 
-    from grasprom.controller import ControllerParams, load_params
+    from grasprom.control.controller import ControllerParams, load_params
     from grasprom.surrogate import SurrogateFileError
-    from grasprom.tuning import tune, write_outputs
+    from grasprom.control.tuning import tune, write_outputs
 
     try:
         if not (math.isfinite(args.rate_hz) and args.rate_hz > 0):
@@ -521,6 +501,8 @@ def _cmd_tune(args: argparse.Namespace) -> int:
         base = dataclasses.replace(base, sample_time_s=1.0 / args.rate_hz)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)
+            from grasprom.surrogate import load_surrogate
+
             sur = load_surrogate(args.surrogate, args.fe)
         aug = None
         if args.augmented:
@@ -585,21 +567,23 @@ def _add_augmented_export(p) -> None:
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
-    from grasprom.controller import ControllerParams, load_params
+    from grasprom.control.controller import ControllerParams, load_params
 
     try:
         params = load_params(args.params) if args.params else ControllerParams()
+        from grasprom.surrogate import load_surrogate
+
         sur = load_surrogate(args.surrogate, args.fe)
         if args.augmented:
             params, _ = _augment_params(f"export {args.export_command}", args.augmented, params,
                                         sur)  # fmt: skip
         if args.export_command == "arduino":
-            from grasprom.arduino import export_main
+            from grasprom.export.arduino import export_main
 
             return export_main(
                 args.out, surrogate=sur, params=params, tol=args.tol, fixed_point=args.fixed_point
             )
-        from grasprom.fmu import export_fmu
+        from grasprom.export.fmu import export_fmu
 
         out = export_fmu(args.out, params, sur, fmi_version=args.fmi)
     except (OSError, ValueError, RuntimeError) as exc:
@@ -613,7 +597,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
 # ---------------------------------------------------------------- build (the main job)
 def _add_build_parser(sub) -> None:
-    from grasprom.pipeline import DEFAULT_HOLDOUT_DIR, STAGES
+    from grasprom.pipeline import STAGES
 
     b = sub.add_parser(
         "build",
@@ -664,7 +648,7 @@ def _add_build_parser(sub) -> None:
 def _cmd_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
     import math
 
-    from grasprom.materials import MATERIAL_NAMES
+    from grasprom.fe.materials import MATERIAL_NAMES
     from grasprom.pipeline import BuildOptions, StageError, run_build, summary
 
     if args.material not in MATERIAL_NAMES:
@@ -673,7 +657,7 @@ def _cmd_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
     if not (math.isfinite(args.thickness) and args.thickness > 0):
         return _error("build", f"--thickness must be > 0 mm, got {args.thickness}")
     opts = BuildOptions(
-        fe_dir=resolve_sweep_dir(args.fe),
+        fe_dir=resolve_data_dir(args.fe),
         holdout_dir=args.holdout,
         thickness_mm=args.thickness,
         material=args.material,

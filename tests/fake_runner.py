@@ -11,14 +11,14 @@ import time
 import numpy as np
 import pandas as pd
 
-from grasprom.fe_model import CaseResult, CaseSpec
+from grasprom.fe.model2d import CaseResult, CaseSpec
 
 FAIL_THICKNESS_MM = 1.0
 """Thickness at which :func:`failing_runner` raises."""
 
 
 def fake_result(spec: CaseSpec, n_steps: int = 12) -> CaseResult:
-    """Analytic stand-in for :func:`grasprom.fe_model.run_case` (mm, N, MPa)."""
+    """Analytic stand-in for :func:`grasprom.fe.model2d.run_case` (mm, N, MPa)."""
     d, t, length = spec.diameter_mm, spec.thickness_mm, spec.jaw_length_mm
     gap = np.linspace(d, spec.closed_gap_mm, n_steps)
     disp = (d - gap) / 2.0

@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from grasprom import arduino as ar
-from grasprom.controller import ControllerParams, ImpedanceController
+from grasprom.export import arduino as ar
+from grasprom.control.controller import ControllerParams, ImpedanceController
 
 CI = os.environ.get("CI") == "true"
 

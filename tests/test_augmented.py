@@ -12,17 +12,17 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from grasprom import diagnosis as dg
-from grasprom import kinematics as kin
+from grasprom.gap import diagnosis as dg
+from grasprom.chain import kinematics as kin
 from grasprom.cli import main
-from grasprom.controller import (
+from grasprom.control.controller import (
     ControllerParams,
     ImpedanceController,
     grasp_trajectory,
     save_params,
     simulate,
 )
-from grasprom.synth import synth_case, write_case
+from grasprom.gap.synth import synth_case, write_case
 
 CHAIN = kin.ChainParams()
 L3 = CHAIN.L3_mm
@@ -304,7 +304,7 @@ def test_exports_load_the_augmented_model(surrogate, tmp_path, capsys):
     from fmpy import read_model_description
     from fmpy import simulate_fmu as fmpy_simulate
 
-    from grasprom.fmu import start_values
+    from grasprom.export.fmu import start_values
 
     sur = surrogate.save(tmp_path / "sur.json")
     aug = {

@@ -9,8 +9,8 @@ import shutil
 import numpy as np
 import pytest
 
-from grasprom.ccore import CCore, c_params, tables_source
-from grasprom.controller import ControllerParams, ImpedanceController, grasp_trajectory
+from grasprom.export.ccore import CCore, c_params, tables_source
+from grasprom.control.controller import ControllerParams, ImpedanceController, grasp_trajectory
 
 
 def _trajectories():

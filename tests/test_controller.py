@@ -13,8 +13,8 @@ import pandas as pd
 import pytest
 from scipy.optimize import brentq
 
-from grasprom import kinematics as kin
-from grasprom.controller import (
+from grasprom.chain import kinematics as kin
+from grasprom.control.controller import (
     ControllerParams,
     ImpedanceController,
     grasp_trajectory,

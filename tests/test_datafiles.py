@@ -7,8 +7,8 @@ import json
 import pandas as pd
 import pytest
 
-from grasprom import datafiles as df
-from grasprom.fe_model import CaseSpec
+from grasprom.fe import datafiles as df
+from grasprom.fe.model2d import CaseSpec
 from tests.fake_runner import fake_result
 
 

@@ -9,10 +9,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from grasprom import diagnosis as dg
-from grasprom import kinematics as kin
-from grasprom.controller import ControllerParams, simulate
-from grasprom.synth import main_synth, synth_case, write_case
+from grasprom.gap import diagnosis as dg
+from grasprom.chain import kinematics as kin
+from grasprom.control.controller import ControllerParams, simulate
+from grasprom.gap.synth import main_synth, synth_case, write_case
 
 CHAIN = kin.ChainParams()
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from grasprom.fe_model import (
+from grasprom.fe.model2d import (
     CaseSpec,
     MeshSpec,
     SolverSettings,
@@ -12,7 +12,7 @@ from grasprom.fe_model import (
     energy,
     run_case,
 )
-from grasprom.materials import get_material
+from grasprom.fe.materials import get_material
 
 
 @pytest.mark.parametrize("nu", [0.3, 0.49])

@@ -26,8 +26,8 @@ from fmpy.validation import validate_fmu
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from grasprom.controller import ControllerParams, ImpedanceController, grasp_trajectory, simulate
-from grasprom.fmu import OUTPUT_COLUMNS, build_driver, export_fmu, start_values
+from grasprom.control.controller import ControllerParams, ImpedanceController, grasp_trajectory, simulate
+from grasprom.export.fmu import OUTPUT_COLUMNS, build_driver, export_fmu, start_values
 
 CI = os.environ.get("CI") == "true"
 REL = 1e-9
@@ -598,7 +598,7 @@ def test_fuzz_inputs_and_parameters_never_crash(fmus, slaves, version):
 def test_cli_export_fmu(tmp_path, capsys):
     _require(shutil.which("gcc") is not None, "gcc")
     from grasprom.cli import main
-    from grasprom.controller import save_params
+    from grasprom.control.controller import save_params
 
     ctl = tmp_path / "controller.json"
     save_params(ControllerParams(thickness_mm=1.2, material="nh", damping_Nms_per_rad=0.01), ctl)

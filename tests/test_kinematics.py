@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad, trapezoid
 
-from grasprom import kinematics as kin
+from grasprom.chain import kinematics as kin
 
 ROOT = Path(__file__).resolve().parents[1]
 P = kin.ChainParams()

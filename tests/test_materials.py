@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from grasprom.materials import (
+from grasprom.fe.materials import (
     MATERIAL_NAMES,
     CompressibleNeoHookean,
     MooneyRivlin,

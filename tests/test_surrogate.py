@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from grasprom import datafiles
+from grasprom.fe import datafiles
 from grasprom.cli import main
 from grasprom.surrogate import (
     SCHEMES,

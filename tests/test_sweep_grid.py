@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from grasprom.fe_model import CaseSpec, MeshSpec
-from grasprom.sweep import (
+from grasprom.fe.model2d import CaseSpec, MeshSpec
+from grasprom.fe.sweep import (
     KNOWN_MATERIALS,
     SweepInputError,
     build_grid,

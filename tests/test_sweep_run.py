@@ -12,8 +12,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from grasprom import datafiles as df
-from grasprom.sweep import SweepConflictError, SweepInputError, build_grid, run_sweep
+from grasprom.fe import datafiles as df
+from grasprom.fe.sweep import SweepConflictError, SweepInputError, build_grid, run_sweep
 from tests import fake_runner as fr
 
 
@@ -138,7 +138,7 @@ def test_bad_run_arguments(tmp_path):
 KILL_SCRIPT = """
 import json, sys
 sys.path.insert(0, {root!r})
-from grasprom.sweep import build_grid, run_sweep
+from grasprom.fe.sweep import build_grid, run_sweep
 from tests.fake_runner import slow_runner
 specs = build_grid("0.8:1.8:0.2", "mr")
 s = run_sweep(specs, sys.argv[1], workers=1, progress=False, runner=slow_runner)

@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from grasprom import tuning as tn
+from grasprom.control import tuning as tn
 from grasprom.cli import main
-from grasprom.controller import ControllerParams, ImpedanceController, load_params
+from grasprom.control.controller import ControllerParams, ImpedanceController, load_params
 from grasprom.surrogate import Surrogate
 
 ROOT = Path(__file__).resolve().parents[1]

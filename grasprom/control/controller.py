@@ -32,7 +32,7 @@ One step, at the sample time ``T`` (default 1 ms, 1 kHz):
    contact is narrower, so the force threshold is the binding one there.
 
 Rendered instrument effects (the augmented model of ``grasprom diagnose``, mapped by
-:func:`grasprom.diagnosis.controller_params_from_augmented`; every one is off at its default, and
+:func:`grasprom.gap.diagnosis.controller_params_from_augmented`; every one is off at its default, and
 the step is then bit-identical to the one without them):
 
 * **Backlash** ``backlash_deg`` (total play width ``b``): between the encoder and the linkage sits
@@ -74,9 +74,9 @@ import math
 from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
-from . import kinematics as kin
-from .materials import MATERIAL_NAMES
-from .surrogate import Surrogate
+from grasprom.chain import kinematics as kin
+from grasprom.fe.materials import MATERIAL_NAMES
+from grasprom.surrogate import Surrogate
 
 NEWTON_ITERATIONS = 3
 """Newton iterations of the virtual-coupling proxy per step (fixed: deterministic cost)."""

@@ -60,8 +60,8 @@ import numpy as np
 import pandas as pd
 from scipy.signal import fftconvolve, lfilter
 
-from . import kinematics as kin
-from .surrogate import Surrogate
+from grasprom.chain import kinematics as kin
+from grasprom.surrogate import Surrogate
 
 LIBRARY_EFFECTS = (
     "tissue_viscoelasticity",
@@ -73,7 +73,7 @@ LIBRARY_EFFECTS = (
     "sensor_offset_gain",
     "latency",
 )
-"""Effects the diagnosis has a candidate for (same names as :data:`grasprom.diagnosis.EFFECTS`)."""
+"""Effects the diagnosis has a candidate for (same names as :data:`grasprom.gap.diagnosis.EFFECTS`)."""
 
 OUT_OF_LIBRARY_EFFECTS = ("motor_cogging",)
 """Effects the diagnosis has no candidate for."""
@@ -406,7 +406,7 @@ def synth_case(
     surrogate : Surrogate
         The baseline tissue force table.
     chain : kinematics.ChainParams, optional
-        Instrument chain (default :class:`~grasprom.kinematics.ChainParams`).
+        Instrument chain (default :class:`~grasprom.chain.kinematics.ChainParams`).
     material : str, optional
         Material key; random among the surrogate's by default.
     jaw_load_cell : bool
@@ -554,7 +554,7 @@ def main_synth(argv: Sequence[str] | None = None) -> int:
     if args.trials < 1:
         print("grasprom synth: --trials must be >= 1", file=sys.stderr)
         return 2
-    from .cli import load_surrogate
+    from grasprom.surrogate import load_surrogate
 
     try:
         surrogate = load_surrogate(args.surrogate, args.fe)

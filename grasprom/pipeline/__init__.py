@@ -7,18 +7,18 @@
    held-out FE directory exists (default ``fe_data/holdout``), its held-out error; writes
    ``surrogate.json``, ``figures/fe_sweep.png`` (FE curves) and ``figures/surrogate.png``
    (surrogate over the FE points).
-2. ``tune`` -- :func:`grasprom.tuning.tune` over every thickness x material of the surrogate;
+2. ``tune`` -- :func:`grasprom.control.tuning.tune` over every thickness x material of the surrogate;
    writes ``controller.json`` (tuned :class:`ControllerParams` at ``--thickness`` /
    ``--material``, report under ``"tuning"``), ``tuning.txt`` and the tuning figures
    (``stiffness_vs_theta.png``, ``zwidth.png``, ``bode_impedance.png``).
-3. ``fmu`` -- :func:`grasprom.fmu.export_fmu`: ``GraspController.fmu`` (FMI 2.0) and
+3. ``fmu`` -- :func:`grasprom.export.fmu.export_fmu`: ``GraspController.fmu`` (FMI 2.0) and
    ``GraspController_fmi3.fmu`` (FMI 3.0), native C co-simulation.
-4. ``arduino`` -- :func:`grasprom.arduino.export_arduino` into ``arduino/`` with the budget
+4. ``arduino`` -- :func:`grasprom.export.arduino.export_arduino` into ``arduino/`` with the budget
    (flash, RAM from avr-gcc/avr-size; cycles from simavr; error against the Python reference).
    With ``fast`` the simavr cycle count and the host error run are skipped; flash and RAM are
    still measured when avr-gcc is installed.
 5. ``cosim`` -- a grasp-hold-release through the FMI 2 FMU with fmpy: the handle (inertia and
-   viscous friction of :class:`grasprom.tuning.DeviceParams`, end stops) is squeezed by a hand
+   viscous friction of :class:`grasprom.control.tuning.DeviceParams`, end stops) is squeezed by a hand
    force profile and pushed back by the motor torque; the FMU's torque is compared with the
    Python reference controller replayed on the same angles.  Writes ``cosim.csv`` and
    ``figures/cosim.png``.
@@ -55,16 +55,15 @@ from typing import TYPE_CHECKING, Any, TextIO
 import numpy as np
 
 if TYPE_CHECKING:
-    from grasprom.arduino import ArduinoExport
-    from grasprom.controller import ControllerParams
+    from grasprom.export.arduino import ArduinoExport
+    from grasprom.control.controller import ControllerParams
     from grasprom.surrogate import Surrogate
-    from grasprom.tuning import DeviceParams, HandParams, TuningResult
+    from grasprom.control.tuning import DeviceParams, HandParams, TuningResult
+
+from grasprom.paths import DEFAULT_HOLDOUT_DIR, resolve_data_dir
 
 STAGES = ("surrogate", "tune", "fmu", "arduino", "cosim", "report")
 """Stage names, in order."""
-
-DEFAULT_HOLDOUT_DIR = "fe_data/holdout"
-"""Off-grid FE cases shipped with the source, for the surrogate's held-out error."""
 
 FMU2_NAME = "GraspController.fmu"
 FMU3_NAME = "GraspController_fmi3.fmu"
@@ -191,27 +190,6 @@ class BuildResult:
 
 
 # ----------------------------------------------------------------------------------- helpers
-def resolve_data_dir(directory: str | Path) -> Path:
-    """``directory``, or the shipped copy of ``fe_data/...`` when run outside the source tree.
-
-    Parameters
-    ----------
-    directory : str or Path
-        A directory; relative ``fe_data/<name>`` paths that do not exist here are looked up
-        in the checkout holding this package.
-
-    Returns
-    -------
-    Path
-    """
-    path = Path(directory)
-    if not path.is_dir() and not path.is_absolute() and path.parts[:1] == ("fe_data",):
-        shipped = Path(__file__).resolve().parents[1] / path
-        if shipped.is_dir():
-            return shipped
-    return path
-
-
 def sha256_path(path: str | Path) -> str:
     """SHA-256 (hex) of a file's bytes."""
     h = hashlib.sha256()
@@ -224,7 +202,7 @@ def sha256_path(path: str | Path) -> str:
 def _versions() -> dict[str, str | None]:
     import importlib
 
-    from grasprom.datafiles import package_versions
+    from grasprom.fe.datafiles import package_versions
 
     out = dict(package_versions())
     for mod, name in (("matplotlib", "matplotlib"), ("control", "control"), ("fmpy", "fmpy")):
@@ -251,7 +229,7 @@ def _tool_version(tool: str) -> str | None:
 
 # ----------------------------------------------------------------------------------- stages
 def _stage_surrogate(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) -> None:
-    from grasprom.report import plot_sweep
+    from grasprom.fe.report import plot_sweep
     from grasprom.surrogate import BuildParams, Surrogate, plot_surrogate
 
     fe = res.fe_dir
@@ -279,12 +257,12 @@ def _stage_surrogate(opts: BuildOptions, res: BuildResult, out: Path, figs: Path
 
 
 def _stage_tune(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) -> None:
-    from grasprom.controller import ControllerParams, save_params
-    from grasprom.tuning import plot_tuning, tune
+    from grasprom.control.controller import ControllerParams, save_params
+    from grasprom.control.tuning import plot_tuning, tune
 
     base = ControllerParams(thickness_mm=opts.thickness_mm, material=opts.material)
     if opts.augmented is not None:
-        from grasprom.diagnosis import controller_params_from_augmented, load_augmented
+        from grasprom.gap.diagnosis import controller_params_from_augmented, load_augmented
 
         base, info = controller_params_from_augmented(
             base, load_augmented(opts.augmented), res.surrogate
@@ -306,7 +284,7 @@ def _stage_tune(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) -> 
 
 
 def _stage_fmu(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) -> None:
-    from grasprom.fmu import export_fmu
+    from grasprom.export.fmu import export_fmu
 
     res.files["fmu2"] = export_fmu(out / FMU2_NAME, res.params, res.surrogate, fmi_version=2)
     res.files["fmu3"] = export_fmu(out / FMU3_NAME, res.params, res.surrogate, fmi_version=3)
@@ -315,7 +293,7 @@ def _stage_fmu(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) -> N
 def _stage_arduino(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) -> None:
     import tempfile
 
-    from grasprom.arduino import build_tables, export_arduino, measure_size
+    from grasprom.export.arduino import build_tables, export_arduino, measure_size
 
     ard = export_arduino(
         out / "arduino", surrogate=res.surrogate, params=res.params, measure=not opts.fast
@@ -336,7 +314,7 @@ def _stage_arduino(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) 
 
 
 def _stage_cosim(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) -> None:
-    from grasprom.tuning import DeviceParams, HandParams
+    from grasprom.control.tuning import DeviceParams, HandParams
 
     dev = res.tuning.device if res.tuning is not None else DeviceParams()
     hand = res.tuning.hand if res.tuning is not None else HandParams()
@@ -350,8 +328,8 @@ def _stage_cosim(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) ->
 
 
 def _stage_report(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) -> None:
-    from grasprom import kinematics as kin
-    from grasprom.controller import ControllerParams
+    from grasprom.chain import kinematics as kin
+    from grasprom.control.controller import ControllerParams
 
     chain = (res.params or ControllerParams()).chain_params
     res.figures["transmission"] = kin.plot_transmission(chain, figs / "transmission.png")
@@ -414,13 +392,13 @@ def cosimulate(
     ``(J + J_h) theta'' = L3 (force_handle - F_hand) - (b + b_h) theta'``, integrated with
     semi-implicit Euler at
     ``substeps`` per controller step; the FMU is stepped at its sample time with the angle at
-    the communication point.  The Python :class:`~grasprom.controller.ImpedanceController` is
+    the communication point.  The Python :class:`~grasprom.control.controller.ImpedanceController` is
     stepped on the same angles for comparison.
 
     Parameters
     ----------
     fmu_path : str or Path
-        FMI 2.0 FMU of :func:`grasprom.fmu.export_fmu`.
+        FMI 2.0 FMU of :func:`grasprom.export.fmu.export_fmu`.
     params : ControllerParams
         Parameters the FMU was exported with (sample time, chain, operating point).
     surrogate : Surrogate
@@ -444,7 +422,7 @@ def cosimulate(
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
 
-    from grasprom.controller import ImpedanceController
+    from grasprom.control.controller import ImpedanceController
 
     t_wall = time.perf_counter()
     ramp, hold, release, rest = (0.4, 0.6, 0.3, 0.5) if fast else (1.0, 2.0, 0.5, 1.0)
@@ -623,7 +601,7 @@ def provenance(res: BuildResult, opts: BuildOptions) -> dict[str, Any]:
     -------
     dict
     """
-    from grasprom.datafiles import git_revision
+    from grasprom.fe.datafiles import git_revision
     from grasprom.surrogate import fe_dir_hash
 
     def dir_hash(d: Path | None) -> str | None:
@@ -779,7 +757,7 @@ def write_report(res: BuildResult, opts: BuildOptions) -> Path:
         if "cosim" in figs:
             parts.append(_img(figs["cosim"], dict(_FIGURES)["cosim"]))
     if res.arduino is not None:
-        from grasprom.arduino import CYCLE_BUDGET, ERROR_BUDGET, FLASH_BUDGET_B, RAM_BUDGET_B
+        from grasprom.export.arduino import CYCLE_BUDGET, ERROR_BUDGET, FLASH_BUDGET_B, RAM_BUDGET_B
 
         a = res.arduino
         parts.append("<h2>Arduino budget (ATmega328P)</h2>" + _table(

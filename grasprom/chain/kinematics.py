@@ -184,7 +184,7 @@ class ChainParams:
         ``gap_open - gap_closed``.
     gap_open_mm : float
         Jaw gap at ``theta_open``, mm.  Default 32 mm: the FE tube (outer diameter 30 mm, see
-        ``grasprom.fe_model.CaseSpec``) fits with 1 mm clearance on each side, so the handle has
+        ``grasprom.fe.model2d.CaseSpec``) fits with 1 mm clearance on each side, so the handle has
         a free stroke before first touch (at :attr:`theta_touch_deg`, 20.3 deg).
     gap_closed_mm : float
         Jaw gap at ``theta_closed``, mm.  1.5 mm: seed 003's blue staple cartridge closed

@@ -35,7 +35,7 @@ from typing import Any
 import pandas as pd
 
 from grasprom import __version__
-from grasprom.fe_model import COLUMN_DESCRIPTIONS, CONTRACT_COLUMNS, CaseResult, CaseSpec
+from grasprom.fe.model2d import COLUMN_DESCRIPTIONS, CONTRACT_COLUMNS, CaseResult, CaseSpec
 
 SCHEMA_VERSION = 1
 """Version of the case sidecar and manifest layout; bump on incompatible change."""
@@ -47,7 +47,7 @@ ERROR_SUFFIX = ".error.txt"
 """Suffix of the file recording a failed case (``<stem>.error.txt``)."""
 
 VALID_STATUSES = ("complete", "partial")
-"""Statuses a finished case may carry (see :class:`grasprom.fe_model.CaseResult`)."""
+"""Statuses a finished case may carry (see :class:`grasprom.fe.model2d.CaseResult`)."""
 
 REQUIRED_COLUMNS = CONTRACT_COLUMNS
 """Columns every case CSV must hold."""
@@ -148,7 +148,7 @@ def case_stem(material: str, thickness_mm: float) -> str:
 
 
 def spec_stem(spec: CaseSpec) -> str:
-    """File stem of a :class:`~grasprom.fe_model.CaseSpec` (see :func:`case_stem`)."""
+    """File stem of a :class:`~grasprom.fe.model2d.CaseSpec` (see :func:`case_stem`)."""
     return case_stem(spec.material, spec.thickness_mm)
 
 

@@ -51,9 +51,9 @@ from numpy.typing import NDArray
 from scipy.optimize import lsq_linear, minimize_scalar
 from scipy.signal import lfilter
 
-from . import kinematics as kin
-from .controller import MAX_PRONY_TERMS, ControllerParams
-from .surrogate import Surrogate
+from grasprom.chain import kinematics as kin
+from grasprom.control.controller import MAX_PRONY_TERMS, ControllerParams
+from grasprom.surrogate import Surrogate
 
 FloatArray = NDArray[np.float64]
 
@@ -2042,11 +2042,11 @@ def main_diagnose(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--controller", default=None, metavar="FILE", help="controller JSON (chain)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     args = p.parse_args(argv)
-    from .cli import load_surrogate
+    from grasprom.surrogate import load_surrogate
 
     try:
         if args.controller:
-            from .controller import load_params
+            from grasprom.control.controller import load_params
 
             chain = load_params(args.controller).chain_params
         else:

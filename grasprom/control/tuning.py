@@ -8,7 +8,7 @@ renders, linearised at an operating point, ``tau = tau0 - K (theta - theta0) - B
   virtual coupling: the jaw sees ``k_eff = k_c k_t / (k_c + k_t)`` (``k_t`` the surrogate
   stiffness at the proxy gap), so
   ``K = 1e-3 [g'^2 k_eff - Fg g'' + k u'^2 + F_s u'']`` (``g'`` mm/rad, ``k_eff`` N/mm) from
-  :func:`grasprom.kinematics.dhandle_force_dtheta_N_per_rad`;
+  :func:`grasprom.chain.kinematics.dhandle_force_dtheta_N_per_rad`;
 * ``B`` the virtual damping (N m s/rad) on the velocity ``v_f``: backward difference of the
   encoder angle, first-order low-pass ``a = exp(-2 pi f_c T)``;
 * the torque computed from sample ``k`` is held (zero-order hold) and applied ``delay`` samples
@@ -43,7 +43,7 @@ quantisation) and measures the energy the controller injects beyond the ideal st
 the growth of the oscillation.
 
 Rendered instrument effects (``ControllerParams`` fields set from a ``grasprom diagnose``
-augmented model, :func:`grasprom.diagnosis.controller_params_from_augmented`)
+augmented model, :func:`grasprom.gap.diagnosis.controller_params_from_augmented`)
 --------------------------------------------------------------------------------------------
 * ``tissue_scale`` scales the tissue force and stiffness everywhere (static map and ``K``).
 * ``jaw_compliance_mm_per_N`` ``C`` is in series with the coupling: the rendered jaw stiffness
@@ -78,9 +78,9 @@ from typing import Any
 
 import numpy as np
 
-from . import kinematics as kin
-from .controller import ControllerParams, ImpedanceController, save_params
-from .surrogate import Surrogate
+from grasprom.chain import kinematics as kin
+from grasprom.control.controller import ControllerParams, ImpedanceController, save_params
+from grasprom.surrogate import Surrogate
 
 __all__ = [
     "DeviceParams",
@@ -145,7 +145,7 @@ class DeviceParams:
     -----
     Sample time ``T`` and the encoder quantum (handle rad per count,
     ``2 pi r / (counts L3)``, :attr:`ImpedanceController.encoder_quantum_rad`) come from the
-    :class:`~grasprom.controller.ControllerParams`.
+    :class:`~grasprom.control.controller.ControllerParams`.
     """
 
     inertia_kg_m2: float = 2.0e-3

@@ -29,9 +29,9 @@ from decimal import Decimal, InvalidOperation
 from pathlib import Path
 from typing import Any
 
-from grasprom import datafiles as df
-from grasprom.fe_model import CaseResult, CaseSpec, MeshSpec
-from grasprom.materials import MATERIAL_NAMES
+from grasprom.fe import datafiles as df
+from grasprom.fe.model2d import CaseResult, CaseSpec, MeshSpec
+from grasprom.fe.materials import MATERIAL_NAMES
 
 KNOWN_MATERIALS = MATERIAL_NAMES
 """Material keys: Mooney-Rivlin, neo-Hookean, large-strain linear elastic."""
@@ -53,11 +53,11 @@ class SweepConflictError(SweepInputError):
 
 
 def default_runner(spec: CaseSpec) -> CaseResult:
-    """Run one case with the real FE model, :func:`grasprom.fe_model.run_case`.
+    """Run one case with the real FE model, :func:`grasprom.fe.model2d.run_case`.
 
     Module-level (picklable) so process pools and Dask workers can import it.
     """
-    from grasprom.fe_model import run_case
+    from grasprom.fe.model2d import run_case
 
     return run_case(spec)
 
@@ -212,8 +212,8 @@ def parse_materials(text: str | Iterable[str]) -> list[str]:
 
 
 def spec_defaults() -> dict[str, Any]:
-    """Default values of the scalar :class:`~grasprom.fe_model.CaseSpec` and
-    :class:`~grasprom.fe_model.MeshSpec` fields (the single source of CLI defaults).
+    """Default values of the scalar :class:`~grasprom.fe.model2d.CaseSpec` and
+    :class:`~grasprom.fe.model2d.MeshSpec` fields (the single source of CLI defaults).
 
     Returns
     -------
@@ -289,12 +289,12 @@ def build_grid(
         Material keys or a ``--material`` string (see :func:`parse_materials`).
     diameter_mm, jaw_length_mm, closed_gap_mm : float, optional
         Outer tube diameter, jaw length along the tube axis (out-of-plane depth) and
-        closed jaw gap, in mm; None takes the :class:`~grasprom.fe_model.CaseSpec` default.
+        closed jaw gap, in mm; None takes the :class:`~grasprom.fe.model2d.CaseSpec` default.
     force_cap_N : float, optional
         Jaw force in N at which a case stops; None takes the default.
     n_layers, n_circ : int, optional
         Mesh divisions through the wall / along the quarter circumference; None takes the
-        :class:`~grasprom.fe_model.MeshSpec` default.
+        :class:`~grasprom.fe.model2d.MeshSpec` default.
     out_dir : str or os.PathLike, optional
         If given, created if needed and checked for writability.
 

@@ -1,7 +1,7 @@
 """Arduino (ATmega328P) export of the impedance controller, verified with avr-gcc and simavr.
 
 The Arduino Uno has no FPU, 2 KB RAM and 16 MHz; a 1 kHz loop leaves 1,600 cycles per step for
-the controller.  The export compiles the one C core of the controller, ``csrc/grasp_core.c`` (the
+the controller.  The export compiles the one C core of the controller, ``fmu/src/grasp_core.c`` (the
 FMU's core), with its build options (see ``grasp_core.h``):
 
 * **default: tabulated, fixed point** (``GC_TABULATED``, set by the generated ``grasp_build.h``):
@@ -52,11 +52,11 @@ from typing import TextIO
 import numpy as np
 from numpy.typing import NDArray
 
-from . import kinematics as kin
-from .ccore import CSRC
-from .controller import ControllerParams
-from .materials import MATERIAL_NAMES
-from .surrogate import Surrogate
+from grasprom.chain import kinematics as kin
+from grasprom.paths import c_file
+from grasprom.control.controller import ControllerParams
+from grasprom.fe.materials import MATERIAL_NAMES
+from grasprom.surrogate import Surrogate
 
 MCU = "atmega328p"
 F_CPU_HZ = 16_000_000
@@ -170,7 +170,7 @@ def reference_run(
 ) -> ReferenceRun:
     """The Python reference (double, float surrogate, converged coupling) on encoder counts.
 
-    Same step as :meth:`grasprom.controller.ImpedanceController.step` with ``theta = count *
+    Same step as :meth:`grasprom.control.controller.ImpedanceController.step` with ``theta = count *
     q``, except that the coupling proxy is solved to convergence (the controller's warm-started
     Newton iterations converge to it on any realistic trajectory; see the tests).
 
@@ -485,7 +485,7 @@ def build_tables(
     Parameters
     ----------
     surrogate : Surrogate
-        Must hold every material of :data:`grasprom.materials.MATERIAL_NAMES`.
+        Must hold every material of :data:`grasprom.fe.materials.MATERIAL_NAMES`.
     params : ControllerParams
         Controller parameters baked into the tables (chain, spring, coupling, pulley, limits,
         filter, damping, encoder); thickness and material stay run-time parameters.
@@ -658,7 +658,7 @@ def write_core(tables: FixedTables, directory: str | Path) -> list[Path]:
     d.mkdir(parents=True, exist_ok=True)
     paths = []
     for f in CORE_SOURCES:
-        shutil.copy(CSRC / f, d / f)
+        shutil.copy(c_file(f), d / f)
         paths.append(d / f)
     (d / "grasp_build.h").write_text(BUILD_HEADER)
     paths.append(d / "grasp_build.h")
@@ -785,7 +785,7 @@ def run_host(tables: FixedTables, cases: Sequence[TestCase], directory: str | Pa
     _need("gcc", "gcc")
     d = Path(directory)
     write_core(tables, d)
-    shutil.copy(CSRC / "gf_test_main.c", d / "gf_test_main.c")
+    shutil.copy(c_file("gf_test_main.c"), d / "gf_test_main.c")
     (d / "gf_vectors.h").write_text(vectors_source(tables, cases))
     exe = d / "gf_host_test"
     _run(["gcc", "-O2", "-std=c99", "-Wall", "-Wextra", "-Werror", "-o", str(exe),
@@ -804,7 +804,7 @@ def build_avr_test(
     _need("avr-gcc", "gcc-avr avr-libc")
     d = Path(directory)
     write_core(tables, d)
-    shutil.copy(CSRC / "gf_test_main.c", d / "gf_test_main.c")
+    shutil.copy(c_file("gf_test_main.c"), d / "gf_test_main.c")
     (d / "gf_vectors.h").write_text(vectors_source(tables, cases))
     elf = d / "gf_avr_test.elf"
     flags = [f if not f.startswith("-mmcu") else f"-mmcu={mcu}" for f in AVR_CFLAGS]
@@ -820,7 +820,7 @@ def build_harness(directory: str | Path) -> Path:
     d.mkdir(parents=True, exist_ok=True)
     exe = d / "gf_simavr_harness"
     _run(["gcc", "-O2", "-Wall", "-Wextra", "-Werror", "-o", str(exe),
-          str(CSRC / "gf_simavr_harness.c"), "-lsimavr"],
+          str(c_file("gf_simavr_harness.c")), "-lsimavr"],
          "simavr harness build (Debian: apt-get install simavr libsimavr-dev)")  # fmt: skip
     return exe
 
@@ -968,7 +968,7 @@ RT_OUT_DTYPE = np.dtype(
 
 def runtime_vectors_source(params: ControllerParams, cases: Sequence[TestCase]) -> str:
     """C source of ``gc_rt_vectors.h``: parameters, encoder quantum and cases (counts)."""
-    from .ccore import c_params
+    from grasprom.export.ccore import c_params
 
     raw = c_params(params)
 
@@ -1018,18 +1018,17 @@ def run_runtime_avr(
 
     avr-gcc's ``double`` is 32-bit, so this is the float build of the FMU's core; the
     surrogate curves go to flash (``GC_TABLE`` = PROGMEM).  Outputs are compared with
-    :class:`grasprom.controller.ImpedanceController` (double) on the same encoder counts.
+    :class:`grasprom.control.controller.ImpedanceController` (double) on the same encoder counts.
     """
-    from .ccore import CSRC as _C
-    from .ccore import tables_source
-    from .controller import ImpedanceController
+    from grasprom.export.ccore import tables_source
+    from grasprom.control.controller import ImpedanceController
 
     _need("avr-gcc", "gcc-avr avr-libc")
     _need("avr-size", "binutils-avr")
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
     for f in (*CORE_SOURCES, "gc_runtime_test_main.c"):
-        shutil.copy(_C / f, d / f)
+        shutil.copy(c_file(f), d / f)
     (d / "grasp_tables.h").write_text(tables_source(surrogate, params.chain_params))
     (d / "gc_rt_vectors.h").write_text(runtime_vectors_source(params, cases))
     elf = d / "gc_rt_avr_test.elf"
@@ -1088,7 +1087,7 @@ def run_runtime_avr(
 
 # --------------------------------------------------------------------------- export
 SKETCH_TEMPLATE = r"""// grasprom impedance controller for an Arduino Uno (ATmega328P).
-// Generated by grasprom (grasprom.arduino.export_arduino).
+// Generated by grasprom (grasprom.export.arduino.export_arduino).
 //
 // Reads the motor's quadrature encoder with pin-change interrupts on pins 2 and 3 (INT0/INT1),
 // runs one controller step every GF_SAMPLE_US microseconds, and drives the motor through a

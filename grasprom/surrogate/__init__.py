@@ -422,13 +422,13 @@ def read_fe_cases(directory: str | os.PathLike[str]) -> tuple[list[FECase], list
     ------
     FileNotFoundError
         If the directory does not exist or holds no case.
-    grasprom.datafiles.CorruptCaseError
+    grasprom.fe.datafiles.CorruptCaseError
         If a case file fails validation (hash, columns).
     ValueError
         If a CSV holds NaN/inf in ``gap_mm`` or ``force_N``, or its gaps do not decrease
         strictly (the message names the file).
     """
-    from grasprom import datafiles
+    from grasprom.fe import datafiles
 
     d = Path(directory)
     if not d.is_dir():
@@ -1113,7 +1113,7 @@ class Surrogate:
         -------
         pathlib.Path
         """
-        from grasprom.datafiles import atomic_write_bytes
+        from grasprom.fe.datafiles import atomic_write_bytes
 
         p = Path(path)
         text = json.dumps(self.to_dict(), indent=1, allow_nan=False, default=_json_default)
@@ -1614,3 +1614,24 @@ def plot_surrogate(
     fig.savefig(out, dpi=110)
     plt.close(fig)
     return out
+
+
+def load_surrogate(surrogate: str | os.PathLike[str] | None, fe: str | os.PathLike[str] | None) -> Surrogate:
+    """Load a surrogate file, or build one from an FE sweep (default: the shipped sweep).
+
+    Parameters
+    ----------
+    surrogate : str or path-like or None
+        A surrogate JSON file (``grasprom surrogate build``); wins over ``fe``.
+    fe : str or path-like or None
+        An FE sweep directory; None: the shipped ``fe_data/default``.
+
+    Returns
+    -------
+    Surrogate
+    """
+    from grasprom.paths import DEFAULT_SWEEP_DIR, resolve_data_dir
+
+    if surrogate:
+        return Surrogate.load(surrogate)
+    return Surrogate.build(resolve_data_dir(fe or DEFAULT_SWEEP_DIR))

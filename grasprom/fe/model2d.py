@@ -34,7 +34,7 @@ import pandas as pd
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .materials import Material, cofactor, get_material, pointwise_tangent
+from grasprom.fe.materials import Material, cofactor, get_material, pointwise_tangent
 
 #: columns every case CSV must hold (a contract other tools rely on)
 CONTRACT_COLUMNS = (

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from grasprom import datafiles as df
+from grasprom.fe import datafiles as df
 
 DEFAULT_GAPS_MM = (20.0, 10.0, 5.0, 3.0, 2.0)
 """Jaw gaps in mm at which the report tabulates the force."""
