@@ -22,8 +22,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from grasprom.export import arduino as ar
 from grasprom.control.controller import ControllerParams
+from grasprom.export import arduino as ar
 from grasprom.surrogate import Surrogate
 
 

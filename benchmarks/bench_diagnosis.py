@@ -1,9 +1,9 @@
 """Blind benchmark of the sim-to-real gap diagnosis (issue 7).
 
 Random cases over every library effect alone, every pair, null cases (noise only) and an effect
-outside the library (motor cogging ripple).  Each case: :func:`grasprom.gap.synth.synth_case` makes
-``--trials`` "real" trials with the effect identities withheld; :func:`grasprom.gap.diagnosis.diagnose`
-sees only the trial tables and sidecars.  Prints the confusion matrix, top-1 accuracy, median
+outside the library (motor cogging ripple).  Each case: :func:`grasprom.gap.synth.synth_case`
+makes ``--trials`` "real" trials with the effect identities withheld;
+:func:`grasprom.gap.diagnosis.diagnose` sees only the trial tables and sidecars.  Prints the confusion matrix, top-1 accuracy, median
 held-out shrink, null -> none rate, the verdicts on out-of-library cases and the block
 attribution of single-effect cases (``where.block`` vs the block of the truth effect,
 :data:`grasprom.gap.diagnosis.EFFECTS`), with its 3 x 3 confusion matrix.
@@ -69,8 +69,12 @@ def case_list(seed: int, per_effect: int, n_null: int, n_ool: int) -> list[dict]
     for _ in range(n_null):
         cases.append({"effects": [], "kind": "null"})
     for i in range(n_ool):
-        cases.append({"effects": [OUT_OF_LIBRARY_EFFECTS[i % len(OUT_OF_LIBRARY_EFFECTS)]],
-                      "kind": "out_of_library"})
+        cases.append(
+            {
+                "effects": [OUT_OF_LIBRARY_EFFECTS[i % len(OUT_OF_LIBRARY_EFFECTS)]],
+                "kind": "out_of_library",
+            }
+        )
     for c in cases:
         c["seed"] = seed * 1000 + k
         k += 1
@@ -82,15 +86,16 @@ def run_case(case: dict, n_trials: int = 4, gap_channel: bool = False) -> dict:
 
     ``gap_channel`` adds the measured jaw gap ``gap_mm`` to the synthetic trials.
     """
-    from grasprom.gap import diagnosis as dg
     from grasprom.chain import kinematics as kin
+    from grasprom.gap import diagnosis as dg
     from grasprom.gap.synth import synth_case
 
     s = _surrogate()
     chain = kin.ChainParams()
     t0 = time.perf_counter()
-    sc = synth_case(case["effects"], seed=case["seed"], surrogate=s, n_trials=n_trials,
-                    gap_channel=gap_channel)
+    sc = synth_case(
+        case["effects"], seed=case["seed"], surrogate=s, n_trials=n_trials, gap_channel=gap_channel
+    )
     trials = [
         dg.validate_trial(t.data, t.sidecar, f"case{case['seed']}_{i}", chain, s)
         for i, t in enumerate(sc.trials)
@@ -153,8 +158,9 @@ def block_confusion(results: list[dict]) -> dict[str, Counter]:
 def summarise(results: list[dict]) -> dict:
     """Headline figures of a list of :func:`run_case` results."""
     lib = [r for r in results if r["kind"] in ("single", "pair")]
-    exact = [sorted(r["predicted"]) == sorted(r["effects"]) and r["label"] == "explained"
-             for r in lib]
+    exact = [
+        sorted(r["predicted"]) == sorted(r["effects"]) and r["label"] == "explained" for r in lib
+    ]
     first_ok = [r["label"] == "explained" and r["predicted"][0] in r["effects"] for r in lib]
     singles = [r for r in results if r["kind"] == "single"]
     pairs = [r for r in results if r["kind"] == "pair"]
@@ -164,25 +170,44 @@ def summarise(results: list[dict]) -> dict:
     return {
         "n_cases": len(results),
         "top1_exact": float(np.mean(exact)) if lib else float("nan"),
-        "top1_singles": float(np.mean([sorted(r["predicted"]) == r["effects"]
-                                       and r["label"] == "explained" for r in singles]))
-        if singles else float("nan"),
-        "pairs_exact": float(np.mean([sorted(r["predicted"]) == sorted(r["effects"])
-                                      for r in pairs])) if pairs else float("nan"),
+        "top1_singles": float(
+            np.mean(
+                [
+                    sorted(r["predicted"]) == r["effects"] and r["label"] == "explained"
+                    for r in singles
+                ]
+            )
+        )
+        if singles
+        else float("nan"),
+        "pairs_exact": float(
+            np.mean([sorted(r["predicted"]) == sorted(r["effects"]) for r in pairs])
+        )
+        if pairs
+        else float("nan"),
         "top1_first_effect_in_truth": float(np.mean(first_ok)) if lib else float("nan"),
         "median_shrink": float(np.median(shr)) if shr else float("nan"),
         "median_shrink_rms": float(np.median([r["shrink_rms"] for r in lib])) if lib else None,
         "null_to_none": float(np.mean([r["label"] == "none" for r in nulls]))
-        if nulls else float("nan"),
+        if nulls
+        else float("nan"),
         "ool_labels": dict(Counter(r["label"] for r in ool)),
-        "ool_explained_conf_ge_0.8": int(sum(r["label"] == "explained" and r["confidence"] >= 0.8
-                                             for r in ool)),
-        "block_accuracy_singles": float(np.mean([r["where"]["block"] == truth_block(r)
-                                                 for r in singles])) if singles else float("nan"),
-        "block_accuracy_by_block": {b: c[b] / sum(c.values())
-                                    for b, c in block_confusion(results).items()},
-        "pairs_block_in_truth": float(np.mean([r["where"]["block"] in _truth_blocks(r)
-                                               for r in pairs])) if pairs else float("nan"),
+        "ool_explained_conf_ge_0.8": int(
+            sum(r["label"] == "explained" and r["confidence"] >= 0.8 for r in ool)
+        ),
+        "block_accuracy_singles": float(
+            np.mean([r["where"]["block"] == truth_block(r) for r in singles])
+        )
+        if singles
+        else float("nan"),
+        "block_accuracy_by_block": {
+            b: c[b] / sum(c.values()) for b, c in block_confusion(results).items()
+        },
+        "pairs_block_in_truth": float(
+            np.mean([r["where"]["block"] in _truth_blocks(r) for r in pairs])
+        )
+        if pairs
+        else float("nan"),
         "ool_blocks": dict(Counter(r["where"]["block"] for r in ool)),
         "mean_seconds": float(np.mean([r["seconds"] for r in results])),
     }
@@ -208,48 +233,65 @@ def print_report(results: list[dict]) -> None:
         print("\nPairs (truth -> verdict)")
         for r in pairs:
             ok = "OK " if sorted(r["predicted"]) == sorted(r["effects"]) else "-- "
-            print(f"  {ok}{'+'.join(r['effects']):<48} -> {r['label']} {'+'.join(r['predicted'])}"
-                  f" (conf {r['confidence']:.2f}, shrink {r['shrink']:.2f})")
+            print(
+                f"  {ok}{'+'.join(r['effects']):<48} -> {r['label']} {'+'.join(r['predicted'])}"
+                f" (conf {r['confidence']:.2f}, shrink {r['shrink']:.2f})"
+            )
     ool = [r for r in results if r["kind"] == "out_of_library"]
     if ool:
         print("\nOut-of-library cases (motor cogging ripple)")
         for r in ool:
-            print(f"  seed {r['seed']}: {r['label']} {'+'.join(r['predicted'])} conf "
-                  f"{r['confidence']:.2f} (best candidate {'+'.join(r['best_candidate'])} explains"
-                  f" {100 * max(r['explained_share'], 0):.0f} %)")
+            print(
+                f"  seed {r['seed']}: {r['label']} {'+'.join(r['predicted'])} conf "
+                f"{r['confidence']:.2f} (best candidate {'+'.join(r['best_candidate'])} explains"
+                f" {100 * max(r['explained_share'], 0):.0f} %)"
+            )
     conf = block_confusion(results)
     if conf:
         from grasprom.gap.diagnosis import BLOCKS
 
         bcols = list(BLOCKS) + ["unknown"]
-        print("\nBlock attribution (single effects; rows = block of the truth effect, "
-              "columns = where.block)")
+        print(
+            "\nBlock attribution (single effects; rows = block of the truth effect, "
+            "columns = where.block)"
+        )
         print(f"{'truth block':<24}" + "".join(f"{c:>10}" for c in bcols))
         for b in BLOCKS:
             c = conf.get(b, Counter())
             print(f"{b:<24}" + "".join(f"{c.get(k, 0):>10d}" for k in bcols))
         print("  per effect (where.block counts):")
         for e in LIBRARY_EFFECTS:
-            c = Counter(r["where"]["block"] for r in results
-                        if r["kind"] == "single" and r["effects"] == [e])
+            c = Counter(
+                r["where"]["block"]
+                for r in results
+                if r["kind"] == "single" and r["effects"] == [e]
+            )
             print(f"    {e:<24} " + ", ".join(f"{k} {n}" for k, n in sorted(c.items())))
     s = summarise(results)
     print("\nSummary")
     print(f"  cases: {s['n_cases']}, mean {s['mean_seconds']:.1f} s per case")
-    print(f"  top-1 accuracy (verdict = exact truth set, singles + pairs): "
-          f"{100 * s['top1_exact']:.1f} %  [singles {100 * s['top1_singles']:.1f} %, "
-          f"pairs {100 * s['pairs_exact']:.1f} %; first named effect in truth "
-          f"{100 * s['top1_first_effect_in_truth']:.1f} %]")
-    print(f"  median held-out shrink of the systematic gap: {100 * s['median_shrink']:.1f} % "
-          f"(of the total RMS incl. noise: {100 * s['median_shrink_rms']:.1f} %)")
+    print(
+        f"  top-1 accuracy (verdict = exact truth set, singles + pairs): "
+        f"{100 * s['top1_exact']:.1f} %  [singles {100 * s['top1_singles']:.1f} %, "
+        f"pairs {100 * s['pairs_exact']:.1f} %; first named effect in truth "
+        f"{100 * s['top1_first_effect_in_truth']:.1f} %]"
+    )
+    print(
+        f"  median held-out shrink of the systematic gap: {100 * s['median_shrink']:.1f} % "
+        f"(of the total RMS incl. noise: {100 * s['median_shrink_rms']:.1f} %)"
+    )
     print(f"  null -> none: {100 * s['null_to_none']:.1f} %")
-    print(f"  out-of-library verdicts: {s['ool_labels']}; explained with confidence >= 0.8: "
-          f"{s['ool_explained_conf_ge_0.8']}")
-    print(f"  block accuracy (single effects, where.block = block of the truth effect): "
-          f"{100 * s['block_accuracy_singles']:.1f} %  ["
-          + ", ".join(f"{b} {100 * a:.0f} %" for b, a in s["block_accuracy_by_block"].items())
-          + f"]; pairs: block of one of the two effects {100 * s['pairs_block_in_truth']:.1f} %;"
-          f" out-of-library (cogging, in the drive): {s['ool_blocks']}")
+    print(
+        f"  out-of-library verdicts: {s['ool_labels']}; explained with confidence >= 0.8: "
+        f"{s['ool_explained_conf_ge_0.8']}"
+    )
+    print(
+        f"  block accuracy (single effects, where.block = block of the truth effect): "
+        f"{100 * s['block_accuracy_singles']:.1f} %  ["
+        + ", ".join(f"{b} {100 * a:.0f} %" for b, a in s["block_accuracy_by_block"].items())
+        + f"]; pairs: block of one of the two effects {100 * s['pairs_block_in_truth']:.1f} %;"
+        f" out-of-library (cogging, in the drive): {s['ool_blocks']}"
+    )
 
 
 def main(argv=None) -> int:
@@ -260,16 +302,26 @@ def main(argv=None) -> int:
     p.add_argument("--ool", type=int, default=12)
     p.add_argument("--trials", type=int, default=4)
     p.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
-    p.add_argument("--gap-channel", action="store_true",
-                   help="trials carry a measured jaw gap gap_mm (laser sensor, 5-10 um rms)")
+    p.add_argument(
+        "--gap-channel",
+        action="store_true",
+        help="trials carry a measured jaw gap gap_mm (laser sensor, 5-10 um rms)",
+    )
     p.add_argument("--json", default=None, help="write all case results here")
     args = p.parse_args(argv)
     cases = case_list(args.seed, args.per_effect, args.null, args.ool)
     t0 = time.perf_counter()
     if args.workers > 1:
         with ProcessPoolExecutor(args.workers) as ex:
-            results = list(ex.map(run_case, cases, [args.trials] * len(cases),
-                                  [args.gap_channel] * len(cases), chunksize=2))
+            results = list(
+                ex.map(
+                    run_case,
+                    cases,
+                    [args.trials] * len(cases),
+                    [args.gap_channel] * len(cases),
+                    chunksize=2,
+                )
+            )
     else:
         results = [run_case(c, args.trials, args.gap_channel) for c in cases]
     if args.gap_channel:

@@ -23,9 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from grasprom.surrogate import load_surrogate
 from grasprom.control.controller import ControllerParams, grasp_trajectory
 from grasprom.export.fmu import OUTPUT_COLUMNS, build_driver, export_fmu
+from grasprom.surrogate import load_surrogate
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -7,8 +7,9 @@ Usage::
 
 The effect is hidden from the diagnosis (it only reads the trial CSVs and sidecars); the truth is
 printed at the end for comparison.  One more trial of the same case is synthesised and *not*
-given to the diagnosis: its measured handle angle drives :func:`grasprom.control.controller.simulate`
-twice, with the plain controller and with the augmented model rendered
+given to the diagnosis: its measured handle angle drives
+:func:`grasprom.control.controller.simulate` twice, with the plain controller and with the augmented model
+rendered
 (:func:`grasprom.gap.diagnosis.controller_params_from_augmented`; stiff coupling, no damping, no
 encoder, so that the controller reproduces the static chain), and the RMS of simulated -
 measured handle force (N) is printed before / after (sensor effects of the model, which the
@@ -32,11 +33,11 @@ import pandas as pd
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from grasprom.gap import diagnosis as dg  # noqa: E402
 from grasprom.chain import kinematics as kin  # noqa: E402
 from grasprom.control.controller import ControllerParams, simulate  # noqa: E402
-from grasprom.surrogate import Surrogate  # noqa: E402
+from grasprom.gap import diagnosis as dg  # noqa: E402
 from grasprom.gap.synth import SYNTH_EFFECTS, synth_case, write_case  # noqa: E402
+from grasprom.surrogate import Surrogate  # noqa: E402
 
 
 def stiff_params(thickness_mm: float, material: str) -> ControllerParams:
@@ -96,13 +97,19 @@ def replay_heldout(trial: dg.Trial, augmented_path: Path, surrogate: Surrogate) 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--effect", default="mechanism_friction",
-                   help=f"withheld effect(s), comma list from {','.join(SYNTH_EFFECTS)}; "
-                   "'' for noise only")
+    p.add_argument(
+        "--effect",
+        default="mechanism_friction",
+        help=f"withheld effect(s), comma list from {','.join(SYNTH_EFFECTS)}; '' for noise only",
+    )
     p.add_argument("--seed", type=int, default=3)
     p.add_argument("--trials", type=int, default=4, help="trials given to the diagnosis")
-    p.add_argument("--out", default=None, metavar="DIR",
-                   help="keep trials, report.json, augmented_model.json and plots here")
+    p.add_argument(
+        "--out",
+        default=None,
+        metavar="DIR",
+        help="keep trials, report.json, augmented_model.json and plots here",
+    )
     args = p.parse_args(argv)
     out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="grasprom_diag_"))
     with warnings.catch_warnings():
@@ -125,13 +132,18 @@ def main(argv=None) -> int:
     print(dg.format_summary(diag.report))
     print(f"\n(withheld truth: {json.dumps(case.truth['effects'], default=float)})")
 
-    rep = replay_heldout(dg.load_trial(held_path, chain, surrogate), written["augmented"],
-                         surrogate)
-    print(f"\nheld-out trial {held_path.name} simulated by the controller "
-          f"(rendered: {', '.join(rep['rendered']) or 'none'}; applied to the sensor reading: "
-          f"{', '.join(rep['measurement_only']) or 'none'})")
-    print(f"  RMS simulated - measured handle force: {rep['rms_before_N']:.3f} N without the "
-          f"augmentation -> {rep['rms_after_N']:.3f} N with it")
+    rep = replay_heldout(
+        dg.load_trial(held_path, chain, surrogate), written["augmented"], surrogate
+    )
+    print(
+        f"\nheld-out trial {held_path.name} simulated by the controller "
+        f"(rendered: {', '.join(rep['rendered']) or 'none'}; applied to the sensor reading: "
+        f"{', '.join(rep['measurement_only']) or 'none'})"
+    )
+    print(
+        f"  RMS simulated - measured handle force: {rep['rms_before_N']:.3f} N without the "
+        f"augmentation -> {rep['rms_after_N']:.3f} N with it"
+    )
     print(f"outputs in {out}")
     return 0
 

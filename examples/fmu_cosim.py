@@ -27,10 +27,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from grasprom.surrogate import load_surrogate  # noqa: E402
 from grasprom.control.controller import ControllerParams  # noqa: E402
 from grasprom.export.fmu import export_fmu  # noqa: E402
 from grasprom.pipeline import hand_force_N  # noqa: E402
+from grasprom.surrogate import load_surrogate  # noqa: E402
 
 J = 2e-4  # kg m^2, handle + reflected motor inertia at the pivot
 B = 5e-3  # N m s / rad, pivot friction
@@ -50,8 +50,12 @@ class _Fmu:
         self.vr = {v.name: v.valueReference for v in md.modelVariables}
         cls = FMU2Slave if version == 2 else FMU3Slave
         token = md.guid if version == 2 else md.instantiationToken
-        self.s = cls(guid=token, unzipDirectory=extract(str(path)),
-                     modelIdentifier=md.coSimulation.modelIdentifier, instanceName="ctl")
+        self.s = cls(
+            guid=token,
+            unzipDirectory=extract(str(path)),
+            modelIdentifier=md.coSimulation.modelIdentifier,
+            instanceName="ctl",
+        )
         self.s.instantiate()
         if version == 2:
             self.s.setupExperiment(startTime=0.0)

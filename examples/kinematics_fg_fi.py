@@ -40,18 +40,24 @@ def main(argv: list[str] | None = None) -> int:
     rs = kin.seed_transmission_ratio(th, p)
     fsp = kin.spring_handle_force_N(th, p)
     fi50 = kin.handle_force_N(50.0, th, p)
-    hdr = (f"{'theta_deg':>9} {'gap_mm':>8} {'dgap/dth':>9} {'dx_mm':>7} {'beta_deg':>8} "
-           f"{'Fg/Fi_%':>8} {'seed_%':>7} {'dev_%':>7} {'Fi_spr_N':>8} {'Fi@50N':>7}")
+    hdr = (
+        f"{'theta_deg':>9} {'gap_mm':>8} {'dgap/dth':>9} {'dx_mm':>7} {'beta_deg':>8} "
+        f"{'Fg/Fi_%':>8} {'seed_%':>7} {'dev_%':>7} {'Fi_spr_N':>8} {'Fi@50N':>7}"
+    )
     print(hdr)
     for row in zip(th, gap, dg, dx, beta, r, rs, fsp, fi50):
         t, g, d1, u, b, ri, si, f0, f50 = row
-        print(f"{t:9.3f} {g:8.3f} {d1:9.3f} {u:7.4f} {b:8.3f} {100 * ri:8.2f} {100 * si:7.2f} "
-              f"{100 * (si / ri - 1):7.2f} {f0:8.3f} {f50:7.2f}")
+        print(
+            f"{t:9.3f} {g:8.3f} {d1:9.3f} {u:7.4f} {b:8.3f} {100 * ri:8.2f} {100 * si:7.2f} "
+            f"{100 * (si / ri - 1):7.2f} {f0:8.3f} {f50:7.2f}"
+        )
     dense = np.linspace(lo, hi, 2201)
     dev = kin.seed_transmission_ratio(dense, p) / kin.transmission_ratio(dense, p) - 1
     i = int(np.argmax(np.abs(dev)))
-    print(f"Fg/Fi derived: {100 * r[-1]:.1f} % (open) -> {100 * r[0]:.1f} % (closed); "
-          f"seed formula deviation: max {100 * dev[i]:.1f} % at theta = {dense[i]:.2f} deg")
+    print(
+        f"Fg/Fi derived: {100 * r[-1]:.1f} % (open) -> {100 * r[0]:.1f} % (closed); "
+        f"seed formula deviation: max {100 * dev[i]:.1f} % at theta = {dense[i]:.2f} deg"
+    )
     out = kin.plot_transmission(p, args.out / "kinematics_fg_fi.png")
     print(f"wrote {out}")
     return 0

@@ -16,8 +16,8 @@ from dataclasses import replace
 from pathlib import Path
 
 from grasprom.control.controller import ControllerParams
-from grasprom.surrogate import Surrogate
 from grasprom.control.tuning import DeviceParams, tune, write_outputs
+from grasprom.surrogate import Surrogate
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -26,8 +26,12 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=Path("tuning"), help="output directory")
     ap.add_argument("--rate-hz", type=float, default=1000.0, help="controller rate, Hz")
-    ap.add_argument("--damping", type=float, default=DeviceParams().damping_Nms_per_rad,
-                    help="physical damping b at the handle pivot, N m s/rad")
+    ap.add_argument(
+        "--damping",
+        type=float,
+        default=DeviceParams().damping_Nms_per_rad,
+        help="physical damping b at the handle pivot, N m s/rad",
+    )
     args = ap.parse_args(argv)
 
     with warnings.catch_warnings():

@@ -482,8 +482,8 @@ def _cmd_tune(args: argparse.Namespace) -> int:
     import warnings
 
     from grasprom.control.controller import ControllerParams, load_params
-    from grasprom.surrogate import SurrogateFileError
     from grasprom.control.tuning import tune, write_outputs
+    from grasprom.surrogate import SurrogateFileError
 
     try:
         if not (math.isfinite(args.rate_hz) and args.rate_hz > 0):

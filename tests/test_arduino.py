@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from grasprom.export import arduino as ar
 from grasprom.control.controller import ControllerParams, ImpedanceController
+from grasprom.export import arduino as ar
 
 CI = os.environ.get("CI") == "true"
 
@@ -93,9 +93,16 @@ def test_reference_matches_the_python_controller(surrogate, tables):
         assert np.sum(got != ref.flags[name]) <= 2, name
 
 
-AUGMENTED = dict(tissue_scale=1.3, jaw_compliance_mm_per_N=0.01, backlash_deg=0.3,
-                 friction_coulomb_N=2.0, friction_load_coefficient=0.1,
-                 friction_viscous_N_s_per_mm=0.02, prony_g=(0.3, 0.2), prony_tau_s=(0.2, 1.0))
+AUGMENTED = dict(
+    tissue_scale=1.3,
+    jaw_compliance_mm_per_N=0.01,
+    backlash_deg=0.3,
+    friction_coulomb_N=2.0,
+    friction_load_coefficient=0.1,
+    friction_viscous_N_s_per_mm=0.02,
+    prony_g=(0.3, 0.2),
+    prony_tau_s=(0.2, 1.0),
+)
 """An augmented model's rendering (grasprom diagnose -> --augmented), every effect on."""
 
 
@@ -135,8 +142,10 @@ def test_augmented_export_on_host_and_avr(surrogate, tmp_path):
     avr = ar.run_simavr(ar.build_avr_test(t, cases, tmp_path / "avr"), cases, tmp_path / "avr")
     assert avr.run.raw == host.raw
     sz = ar.measure_size(t, tmp_path / "size")
-    print(f"augmented export on the AVR: cycles/step max {avr.cycles.max()} mean "
-          f"{avr.cycles.mean():.0f}, flash {sz.flash_B} B, RAM {sz.ram_B} B")
+    print(
+        f"augmented export on the AVR: cycles/step max {avr.cycles.max()} mean "
+        f"{avr.cycles.mean():.0f}, flash {sz.flash_B} B, RAM {sz.ram_B} B"
+    )
     assert sz.flash_B <= ar.FLASH_BUDGET_B and sz.ram_B <= ar.RAM_BUDGET_B
 
 
@@ -228,8 +237,10 @@ def test_fmu_runtime_core_runs_on_the_avr_as_float_build(surrogate, tables, tmp_
     counts = ar.sweep_counts(tables, 9)
     cases = [ar.TestCase(m, th, counts) for m, th in (("mr", 1400), ("nh", 2000), ("le", 850))]
     r = ar.run_runtime_avr(surrogate, ControllerParams(), cases, tmp_path)
-    print(f"\nrun-time float core on the AVR: cycles/step max {r.cycles.max()} mean "
-          f"{r.cycles.mean():.0f}, flash {r.flash_B} B, handle error {r.handle_pct_fs:.2e} % FS")
+    print(
+        f"\nrun-time float core on the AVR: cycles/step max {r.cycles.max()} mean "
+        f"{r.cycles.mean():.0f}, flash {r.flash_B} B, handle error {r.handle_pct_fs:.2e} % FS"
+    )
     assert len(r.cycles) == sum(len(c.counts) for c in cases)
     assert r.handle_pct_fs < 1e-3  # float32 rounding, vs 0.5 % for the fixed-point build
     assert r.jaw_max_abs_N < 1e-3

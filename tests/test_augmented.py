@@ -12,7 +12,6 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from grasprom.gap import diagnosis as dg
 from grasprom.chain import kinematics as kin
 from grasprom.cli import main
 from grasprom.control.controller import (
@@ -22,6 +21,7 @@ from grasprom.control.controller import (
     save_params,
     simulate,
 )
+from grasprom.gap import diagnosis as dg
 from grasprom.gap.synth import synth_case, write_case
 
 CHAIN = kin.ChainParams()
@@ -170,8 +170,11 @@ def test_mapping_clips_and_reports(surrogate):
     model = dg.AugmentedModel(
         {
             "thickness_error": {"offset_mm": 0.35},
-            "mechanism_friction": {"coulomb_N": -0.2, "load_coefficient": 0.05,
-                                   "viscous_N_s_per_mm": 0.001},  # fmt: skip
+            "mechanism_friction": {
+                "coulomb_N": -0.2,
+                "load_coefficient": 0.05,
+                "viscous_N_s_per_mm": 0.001,
+            },  # fmt: skip
             "tissue_viscoelasticity": G0 | {"g_0.03s": 0.4, "g_5s": 0.1},
             "sensor_offset_gain": {"offset_N": 0.3, "gain": 1.08},
             "latency": {"delay_s": 0.012},
@@ -337,8 +340,15 @@ def test_exports_load_the_augmented_model(surrogate, tmp_path, capsys):
     sig = np.zeros(n, dtype=[("time", float), ("theta", float), ("theta_dot", float)])
     sig["time"] = 1e-3 * np.arange(n)
     sig["theta"] = th
-    res = fmpy_simulate(str(fmu), start_time=0.0, stop_time=n * 1e-3, output_interval=1e-3,
-                        input=sig, output=["force_handle"], start_values=start_values(p))
+    res = fmpy_simulate(
+        str(fmu),
+        start_time=0.0,
+        stop_time=n * 1e-3,
+        output_interval=1e-3,
+        input=sig,
+        output=["force_handle"],
+        start_values=start_values(p),
+    )
     ctl = ImpedanceController(p, surrogate)
     ref = np.array([ctl.step(x).force_handle_N for x in th])
     plain = ImpedanceController(ControllerParams(), surrogate)

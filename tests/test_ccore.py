@@ -9,8 +9,8 @@ import shutil
 import numpy as np
 import pytest
 
-from grasprom.export.ccore import CCore, c_params, tables_source
 from grasprom.control.controller import ControllerParams, ImpedanceController, grasp_trajectory
+from grasprom.export.ccore import CCore, c_params, tables_source
 
 
 def _trajectories():
@@ -29,12 +29,31 @@ CASES = [
     ("le", 0.8, {"encoder_counts_per_rev": 0, "render_spring": False}),
     ("mr", 2.0, {"velocity_cutoff_Hz": 5.0, "damping_Nms_per_rad": 0.05}),
     # every rendered effect of an augmented model (grasprom diagnose) at once
-    ("mr", 1.4, {"tissue_scale": 1.3, "jaw_compliance_mm_per_N": 0.01, "backlash_deg": 0.3,
-                 "friction_coulomb_N": 2.0, "friction_load_coefficient": 0.1,
-                 "friction_viscous_N_s_per_mm": 0.02, "prony_g": (0.3, 0.2),
-                 "prony_tau_s": (0.2, 1.0)}),
-    ("nh", 1.15, {"prony_g": (0.5, 0.1, 0.05, 0.02), "prony_tau_s": (0.01, 0.1, 1.0, 10.0),
-                  "friction_coulomb_N": 1.0, "encoder_counts_per_rev": 0, "tissue_scale": 0.7}),
+    (
+        "mr",
+        1.4,
+        {
+            "tissue_scale": 1.3,
+            "jaw_compliance_mm_per_N": 0.01,
+            "backlash_deg": 0.3,
+            "friction_coulomb_N": 2.0,
+            "friction_load_coefficient": 0.1,
+            "friction_viscous_N_s_per_mm": 0.02,
+            "prony_g": (0.3, 0.2),
+            "prony_tau_s": (0.2, 1.0),
+        },
+    ),
+    (
+        "nh",
+        1.15,
+        {
+            "prony_g": (0.5, 0.1, 0.05, 0.02),
+            "prony_tau_s": (0.01, 0.1, 1.0, 10.0),
+            "friction_coulomb_N": 1.0,
+            "encoder_counts_per_rev": 0,
+            "tissue_scale": 0.7,
+        },
+    ),
 ]
 
 
@@ -78,7 +97,7 @@ def test_c_core_clamps_thickness_and_rejects_bad_params(surrogate, tmp_path):
 
 def test_tables_are_exact_hex_literals(surrogate):
     src = tables_source(surrogate, ControllerParams().chain_params)
-    x0 = surrogate._table("mr").s_curves[0][0][1]
+    x0 = surrogate.table("mr").s_curves[0][0][1]
     assert float(x0).hex() in src
     assert "GC_MATERIALS[GC_N_MATERIALS]" in src
 
@@ -111,8 +130,14 @@ def test_c_core_measured_velocity_matches_python(surrogate, tmp_path):
 def test_augmented_rendering_changes_the_c_output(surrogate, tmp_path):
     """The parity above is not trivial: the rendered effects move the C core's torque."""
     base = ControllerParams()
-    aug = dataclasses.replace(base, tissue_scale=1.3, backlash_deg=0.3, friction_coulomb_N=2.0,
-                              prony_g=(0.3,), prony_tau_s=(0.2,))
+    aug = dataclasses.replace(
+        base,
+        tissue_scale=1.3,
+        backlash_deg=0.3,
+        friction_coulomb_N=2.0,
+        prony_g=(0.3,),
+        prony_tau_s=(0.2,),
+    )
     th = _trajectories()["slow"]
     out = []
     for p in (base, aug):

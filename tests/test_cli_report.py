@@ -7,8 +7,8 @@ import subprocess
 import pandas as pd
 import pytest
 
-from grasprom.fe import datafiles as df
 from grasprom.cli import main
+from grasprom.fe import datafiles as df
 from grasprom.fe.report import force_at_gap, make_report, sweep_table
 from grasprom.fe.sweep import build_grid, run_sweep
 from tests import fake_runner as fr

@@ -9,9 +9,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from grasprom.gap import diagnosis as dg
 from grasprom.chain import kinematics as kin
 from grasprom.control.controller import ControllerParams, simulate
+from grasprom.gap import diagnosis as dg
 from grasprom.gap.synth import main_synth, synth_case, write_case
 
 CHAIN = kin.ChainParams()
@@ -45,13 +45,19 @@ SIDE = {"thickness_mm": 1.4, "material": "mr"}
     "mutate, expect",
     [
         (lambda d: d.drop(columns=["force_handle_N"]), "missing column(s) 'force_handle_N'"),
-        (lambda d: d.assign(force_handle_N=d.force_handle_N.where(d.index != 7)),
-         "row 8 (line 9), column 'force_handle_N': not a finite number"),
-        (lambda d: d.assign(time_s=np.where(d.index == 12, 0.05, d.time_s)),
-         "row 13 (line 14), column 'time_s': time must increase"),
+        (
+            lambda d: d.assign(force_handle_N=d.force_handle_N.where(d.index != 7)),
+            "row 8 (line 9), column 'force_handle_N': not a finite number",
+        ),
+        (
+            lambda d: d.assign(time_s=np.where(d.index == 12, 0.05, d.time_s)),
+            "row 13 (line 14), column 'time_s': time must increase",
+        ),
         (lambda d: d.assign(theta_deg=np.radians(d.theta_deg)), "radians?"),
-        (lambda d: d.assign(theta_deg=np.where(d.index == 3, 25.0, d.theta_deg)),
-         "row 4 (line 5), column 'theta_deg': 25.0 deg outside"),
+        (
+            lambda d: d.assign(theta_deg=np.where(d.index == 3, 25.0, d.theta_deg)),
+            "row 4 (line 5), column 'theta_deg': 25.0 deg outside",
+        ),
         (lambda d: d.assign(force_handle_N=d.force_handle_N * 5000.0), "mN instead of N?"),
         (lambda d: d.assign(gap_mm=np.full(len(d), 0.01)), "metres instead of mm?"),
         (lambda d: d.iloc[:30], "too short (30 rows"),
@@ -105,8 +111,9 @@ def test_too_short_cli_exit_2(tmp_path, surrogate, capsys):
     (tmp_path / "s.json").write_text(json.dumps(SIDE))
     sur = tmp_path / "sur.json"
     surrogate.save(sur)
-    rc = dg.main_diagnose([str(tmp_path / "s.csv"), "--out", str(tmp_path / "o"),
-                           "--surrogate", str(sur)])
+    rc = dg.main_diagnose(
+        [str(tmp_path / "s.csv"), "--out", str(tmp_path / "o"), "--surrogate", str(sur)]
+    )
     assert rc == 2
     err = capsys.readouterr().err
     assert "s.csv" in err and "too short" in err
@@ -244,8 +251,14 @@ def test_pair_and_report_schema(surrogate, tmp_path):
     scores = [e["score"] for e in r["effects"]]
     assert scores == sorted(scores, reverse=True)
     v = r["verdict"]
-    assert {"label", "effects", "heldout_rms_before_N", "heldout_rms_after_N", "shrink",
-            "confidence"} <= set(v)
+    assert {
+        "label",
+        "effects",
+        "heldout_rms_before_N",
+        "heldout_rms_after_N",
+        "shrink",
+        "confidence",
+    } <= set(v)
     assert v["heldout_rms_after_N"] < v["heldout_rms_before_N"]
     json.dumps(r)  # JSON-ready
 
@@ -282,8 +295,15 @@ def test_load_augmented_rejects_bad_file(tmp_path):
     p.write_text(json.dumps({"format": "x", "format_version": 1}))
     with pytest.raises(ValueError, match="a.json"):
         dg.load_augmented(p)
-    p.write_text(json.dumps({"format": dg.FORMAT_AUGMENTED, "format_version": 1,
-                             "effects": [{"name": "latency", "params": {"d": 1}}]}))
+    p.write_text(
+        json.dumps(
+            {
+                "format": dg.FORMAT_AUGMENTED,
+                "format_version": 1,
+                "effects": [{"name": "latency", "params": {"d": 1}}],
+            }
+        )
+    )
     with pytest.raises(ValueError, match="needs parameters"):
         dg.load_augmented(p)
 
@@ -291,8 +311,20 @@ def test_load_augmented_rejects_bad_file(tmp_path):
 def test_cli_synth_then_diagnose(tmp_path, surrogate, capsys):
     sur = tmp_path / "sur.json"
     surrogate.save(sur)
-    rc = main_synth(["--out", str(tmp_path / "d"), "--effect", "tissue_stiffness_scale",
-                     "--seed", "5", "--trials", "3", "--surrogate", str(sur)])
+    rc = main_synth(
+        [
+            "--out",
+            str(tmp_path / "d"),
+            "--effect",
+            "tissue_stiffness_scale",
+            "--seed",
+            "5",
+            "--trials",
+            "3",
+            "--surrogate",
+            str(sur),
+        ]
+    )
     assert rc == 0
     truth = json.loads((tmp_path / "d" / "truth.json").read_text())
     assert list(truth["effects"]) == ["tissue_stiffness_scale"]
@@ -308,8 +340,21 @@ def test_cli_synth_then_diagnose(tmp_path, surrogate, capsys):
     assert (tmp_path / "o" / "residual_by_phase.png").is_file()
     assert (tmp_path / "o" / "trial_01.png").is_file()
     assert main_synth(["--out", str(tmp_path / "e"), "--effect", "nope"]) == 2
-    rc = main_synth(["--out", str(tmp_path / "g"), "--effect", "backlash", "--seed", "5",
-                     "--trials", "1", "--gap-channel", "--surrogate", str(sur)])
+    rc = main_synth(
+        [
+            "--out",
+            str(tmp_path / "g"),
+            "--effect",
+            "backlash",
+            "--seed",
+            "5",
+            "--trials",
+            "1",
+            "--gap-channel",
+            "--surrogate",
+            str(sur),
+        ]
+    )
     assert rc == 0
     tr = dg.load_trial(tmp_path / "g" / "trial_01.csv", CHAIN, surrogate)
     assert tr.gap_mm is not None and tr.force_jaw_N is not None

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from grasprom.fe.materials import get_material
 from grasprom.fe.model2d import (
     CaseSpec,
     MeshSpec,
@@ -12,7 +13,6 @@ from grasprom.fe.model2d import (
     energy,
     run_case,
 )
-from grasprom.fe.materials import get_material
 
 
 @pytest.mark.parametrize("nu", [0.3, 0.49])

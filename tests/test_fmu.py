@@ -26,7 +26,12 @@ from fmpy.validation import validate_fmu
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from grasprom.control.controller import ControllerParams, ImpedanceController, grasp_trajectory, simulate
+from grasprom.control.controller import (
+    ControllerParams,
+    ImpedanceController,
+    grasp_trajectory,
+    simulate,
+)
 from grasprom.export.fmu import OUTPUT_COLUMNS, build_driver, export_fmu, start_values
 
 CI = os.environ.get("CI") == "true"
@@ -90,10 +95,20 @@ CASES = [
     ("le", 0.8, {"encoder_counts_per_rev": 0, "render_spring": False}),
     ("mr", 2.0, {"velocity_cutoff_Hz": 5.0, "damping_Nms_per_rad": 0.05}),
     # an augmented model's rendering (grasprom diagnose -> --augmented): FMU parameters
-    ("nh", 1.4, {"tissue_scale": 1.3, "jaw_compliance_mm_per_N": 0.01, "backlash_deg": 0.3,
-                 "friction_coulomb_N": 2.0, "friction_load_coefficient": 0.1,
-                 "friction_viscous_N_s_per_mm": 0.02, "prony_g": (0.3, 0.2),
-                 "prony_tau_s": (0.2, 1.0)}),
+    (
+        "nh",
+        1.4,
+        {
+            "tissue_scale": 1.3,
+            "jaw_compliance_mm_per_N": 0.01,
+            "backlash_deg": 0.3,
+            "friction_coulomb_N": 2.0,
+            "friction_load_coefficient": 0.1,
+            "friction_viscous_N_s_per_mm": 0.02,
+            "prony_g": (0.3, 0.2),
+            "prony_tau_s": (0.2, 1.0),
+        },
+    ),
 ]
 
 
@@ -381,8 +396,11 @@ class _Slave:
             val = (ctypes.c_int32 * 1)(value)
             fn = "fmi2SetInteger" if self.v == 2 else "fmi3SetInt32"
         else:
-            val = (ctypes.c_int * 1)(int(bool(value))) if self.v == 2 else (ctypes.c_bool * 1)(
-                bool(value))
+            val = (
+                (ctypes.c_int * 1)(int(bool(value)))
+                if self.v == 2
+                else (ctypes.c_bool * 1)(bool(value))
+            )
             fn = "fmi2SetBoolean" if self.v == 2 else "fmi3SetBoolean"
         args = (self.c, vr, 1, val) if self.v == 2 else (self.c, vr, 1, val, 1)
         return self._call(fn, *args)

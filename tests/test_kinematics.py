@@ -54,8 +54,11 @@ def test_defaults_are_table1_and_documented_choices():
     assert best < kin.SEED_TABLE1["beta_initial_deg"]
     assert best - P.beta_open_deg < 0.01
     for d in np.linspace(-15, 15, 61):  # no offset reaches 19 deg
-        s = (d * math.cos(math.radians(22)) + math.sin(math.radians(22))
-             * math.sqrt(21**2 - d**2) - d) / 25.1
+        s = (
+            d * math.cos(math.radians(22))
+            + math.sin(math.radians(22)) * math.sqrt(21**2 - d**2)
+            - d
+        ) / 25.1
         assert math.degrees(math.asin(s)) <= best + 1e-9
     assert P.rod_stroke_mm == pytest.approx(1.311, abs=1e-3)
     assert P.m_mm == pytest.approx(P.n_mm * P.rod_stroke_mm / 30.5)
@@ -73,9 +76,17 @@ def test_gap_endpoints_and_monotone():
 
 
 def test_scalar_and_array_paths_agree():
-    funcs = [kin.gap_mm, kin.dgap_dtheta_mm_per_rad, kin.d2gap_dtheta2_mm_per_rad2, kin.beta_deg,
-             kin.spring_dx_mm, kin.spring_energy_Nmm, kin.spring_handle_force_N,
-             kin.transmission_ratio, kin.seed_transmission_ratio]
+    funcs = [
+        kin.gap_mm,
+        kin.dgap_dtheta_mm_per_rad,
+        kin.d2gap_dtheta2_mm_per_rad2,
+        kin.beta_deg,
+        kin.spring_dx_mm,
+        kin.spring_energy_Nmm,
+        kin.spring_handle_force_N,
+        kin.transmission_ratio,
+        kin.seed_transmission_ratio,
+    ]
     for f in funcs:
         arr = f(THETA, P)
         sc = np.array([f(float(t), P) for t in THETA])
@@ -154,21 +165,26 @@ def test_force_round_trips_and_spring():
     rng = np.random.default_rng(0)
     th = rng.uniform(LO, HI, 500)
     fg = rng.uniform(0, 300, 500)
-    np.testing.assert_allclose(kin.jaw_force_N(kin.handle_force_N(fg, th, P), th, P), fg,
-                               rtol=1e-12, atol=1e-10)
+    np.testing.assert_allclose(
+        kin.jaw_force_N(kin.handle_force_N(fg, th, P), th, P), fg, rtol=1e-12, atol=1e-10
+    )
     fi = rng.uniform(0, 100, 500)
-    np.testing.assert_allclose(kin.handle_force_N(kin.jaw_force_N(fi, th, P), th, P), fi,
-                               rtol=1e-12, atol=1e-10)
+    np.testing.assert_allclose(
+        kin.handle_force_N(kin.jaw_force_N(fi, th, P), th, P), fi, rtol=1e-12, atol=1e-10
+    )
     # spring alone: Fi(Fg = 0); a finger force below it gives Fg < 0 (jaws not pressing)
-    np.testing.assert_allclose(kin.handle_force_N(0.0, THETA, P),
-                               kin.spring_handle_force_N(THETA, P), rtol=1e-14)
+    np.testing.assert_allclose(
+        kin.handle_force_N(0.0, THETA, P), kin.spring_handle_force_N(THETA, P), rtol=1e-14
+    )
     assert kin.jaw_force_N(0.5 * kin.spring_handle_force_N(10.0, P), 10.0, P) < 0
     assert kin.spring_handle_force_N(HI, P) == pytest.approx(0.542, abs=1e-3)
     assert kin.spring_handle_force_N(LO, P) == pytest.approx(1.709, abs=1e-3)
     # Fg is affine in Fi with slope = transmission_ratio
     np.testing.assert_allclose(
         kin.jaw_force_N(11.0, THETA, P) - kin.jaw_force_N(10.0, THETA, P),
-        kin.transmission_ratio(THETA, P), rtol=1e-11)
+        kin.transmission_ratio(THETA, P),
+        rtol=1e-11,
+    )
     # no spring: Fg/Fi is the transmission ratio
     p0 = dataclasses.replace(P, spring_k_N_per_mm=0.0, spring_preload_N=0.0)
     np.testing.assert_allclose(kin.jaw_force_N(1.0, THETA, p0), kin.transmission_ratio(THETA, p0))
@@ -210,7 +226,8 @@ def test_seed_formula_deviation_figure():
     # the mean ratio over the stroke is fixed by energy: L3 * range / gap travel
     mean = trapezoid(1.0 / derived, th) / (HI - LO)  # mean of g'/L3 over theta
     assert 1.0 / mean == pytest.approx(
-        P.L3_mm * math.radians(HI - LO) / (P.gap_open_mm - P.gap_closed_mm), rel=1e-6)
+        P.L3_mm * math.radians(HI - LO) / (P.gap_open_mm - P.gap_closed_mm), rel=1e-6
+    )
     # seed Fg with spring as printed: (ratio * Fi - k dx m/n)
     fs = kin.seed_jaw_force_N(10.0, th, P)
     expect = 10.0 * seed - P.spring_k_N_per_mm * kin.spring_dx_mm(th, P) * P.m_mm / P.n_mm
@@ -288,7 +305,10 @@ def test_plot_transmission(tmp_path):
 def test_example_script_runs(tmp_path, python, subprocess_env):
     res = subprocess.run(
         [python, str(ROOT / "examples" / "kinematics_fg_fi.py"), "--out", str(tmp_path)],
-        capture_output=True, text=True, env=subprocess_env, timeout=60,
+        capture_output=True,
+        text=True,
+        env=subprocess_env,
+        timeout=60,
     )
     assert res.returncode == 0, res.stderr
     assert "Fg/Fi" in res.stdout

@@ -94,8 +94,11 @@ def test_fmu_validates_and_simulates(built, name):
     # same as the Python reference on the same trajectory (FMU outputs lag one step)
     import pandas as pd
 
-    ref = simulate(pd.DataFrame({"time_s": t, "theta_deg": theta_deg}),
-                   load_params(out / "controller.json"), Surrogate.load(out / "surrogate.json"))
+    ref = simulate(
+        pd.DataFrame({"time_s": t, "theta_deg": theta_deg}),
+        load_params(out / "controller.json"),
+        Surrogate.load(out / "surrogate.json"),
+    )
     np.testing.assert_allclose(r["torque"][-1], ref["torque_Nm"].to_numpy()[-2], rtol=1e-6)
 
 
@@ -142,8 +145,12 @@ def test_report_names_and_embeds_figures(built):
     assert prov["command_line"][:2] == ["grasprom", "build"] and "--fast" in prov["command_line"]
     assert prov["failed_stage"] is None
     assert prov["versions"]["grasprom"] and prov["fe_hash"]
-    assert set(prov["artefact_sha256"]) >= {"surrogate.json", "controller.json",
-                                             "GraspController.fmu", "GraspController_fmi3.fmu"}
+    assert set(prov["artefact_sha256"]) >= {
+        "surrogate.json",
+        "controller.json",
+        "GraspController.fmu",
+        "GraspController_fmi3.fmu",
+    }
     cs = meta["results"]["cosim"]
     assert cs["max_torque_diff_vs_python_Nm"] < 1e-9  # FMU = Python reference
     assert cs["max_force_jaw_N"] > 0.1 and cs["min_theta_deg"] < 10  # it did grasp

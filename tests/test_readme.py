@@ -47,7 +47,7 @@ def test_readme_first_commands_are_the_documented_ones():
     main, tests = readme_commands()
     assert main == MAIN_JOB
     assert tests == TEST_CMD  # .ci/run calls exactly this
-    assert "python -m pip install -e \".[dev]\"" in (ROOT / ".ci" / "run").read_text()
+    assert 'python -m pip install -e ".[dev]"' in (ROOT / ".ci" / "run").read_text()
 
 
 def _norm(text: str) -> str:
@@ -62,7 +62,7 @@ def test_cli_reference_matches_live_help():
     assert m, "README lacks the generated CLI reference block"
     assert _norm(m.group(1)) == _norm(cli_reference()), (
         "README's CLI reference is stale; regenerate with "
-        "python -c \"from grasprom.cli import cli_reference as c; print(c())\""
+        'python -c "from grasprom.cli import cli_reference as c; print(c())"'
     )
 
 

@@ -11,8 +11,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from grasprom.fe import datafiles
 from grasprom.cli import main
+from grasprom.fe import datafiles
 from grasprom.surrogate import (
     SCHEMES,
     BuildParams,

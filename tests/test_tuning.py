@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from grasprom.control import tuning as tn
 from grasprom.cli import main
+from grasprom.control import tuning as tn
 from grasprom.control.controller import ControllerParams, ImpedanceController, load_params
 from grasprom.surrogate import Surrogate
 
@@ -67,8 +67,12 @@ def test_abbott_okamura():
 # ------------------------------------------------------------------ rendered stiffness
 @pytest.mark.parametrize("material,thickness", [("le", 2.0), ("mr", 1.4), ("nh", 0.8)])
 def test_chain_stiffness_matches_controller_static_map(sur, material, thickness):
-    p = ControllerParams(material=material, thickness_mm=thickness, encoder_counts_per_rev=0,
-                         coupling_stiffness_N_per_mm=1.0)
+    p = ControllerParams(
+        material=material,
+        thickness_mm=thickness,
+        encoder_counts_per_rev=0,
+        coupling_stiffness_N_per_mm=1.0,
+    )
     L3 = p.chain_params.L3_mm * 1e-3
     h = 1e-5
 
@@ -102,14 +106,18 @@ def test_tuned_parameters_are_passive_everywhere(sur, tuned):
     assert sm["passivity_margin"] >= sm["safety_factor"] * (1 - 1e-6)
     # every operating point satisfies the delay-aware condition with margin
     allK = np.concatenate([o.K_Nm_per_rad for o in tuned.points])
-    b_req = tn.required_damping(np.array([allK.max(), allK.min()]), p.damping_Nms_per_rad, T,
-                                p.velocity_cutoff_Hz, 1)
+    b_req = tn.required_damping(
+        np.array([allK.max(), allK.min()]), p.damping_Nms_per_rad, T, p.velocity_cutoff_Hz, 1
+    )
     assert np.all(b_req * sm["safety_factor"] <= tuned.device.damping_Nms_per_rad * (1 + 1e-9))
     # k_c is (nearly) the largest: a 10 % stiffer coupling breaks the margin
     p2 = replace(p, coupling_stiffness_N_per_mm=1.1 * p.coupling_stiffness_N_per_mm)
     K2 = max(float(o.K_Nm_per_rad.max()) for o in tn.operating_points(sur, p2, n_theta=56))
-    assert tn.required_damping(K2, p.damping_Nms_per_rad, T, p.velocity_cutoff_Hz, 1) * sm[
-        "safety_factor"] > tuned.device.damping_Nms_per_rad
+    assert (
+        tn.required_damping(K2, p.damping_Nms_per_rad, T, p.velocity_cutoff_Hz, 1)
+        * sm["safety_factor"]
+        > tuned.device.damping_Nms_per_rad
+    )
     assert sm["closed_loop_with_hand"]["stable"]
     assert sm["closed_loop_device_alone"]["stable"]
     # the raw tissue cannot be rendered at 1 kHz with this damping
@@ -147,13 +155,26 @@ def test_zero_damping_on_low_damping_device_oscillates(sur, tuned):
 def test_pole_check_agrees_with_energy_simulation(sur, tuned, factor):
     # frictionless, unquantised device: the linear verdict must match the simulation
     dev = replace(tuned.device, coulomb_Nm=0.0)
-    p = replace(tuned.params, material="le", thickness_mm=2.0,
-                coupling_stiffness_N_per_mm=factor * tuned.params.coupling_stiffness_N_per_mm)
-    sim = tn.simulate_hold(sur, p, dev, tuned.hand, theta_hold_deg=1.0,
-                           theta_start_offset_deg=0.05, duration_s=1.0, quantise=False)
+    p = replace(
+        tuned.params,
+        material="le",
+        thickness_mm=2.0,
+        coupling_stiffness_N_per_mm=factor * tuned.params.coupling_stiffness_N_per_mm,
+    )
+    sim = tn.simulate_hold(
+        sur,
+        p,
+        dev,
+        tuned.hand,
+        theta_hold_deg=1.0,
+        theta_start_offset_deg=0.05,
+        duration_s=1.0,
+        quantise=False,
+    )
     K = float(tn.rendered_stiffness(sur, p, [sim["theta_hold_deg"]]).K_Nm_per_rad[0])
-    cl = tn.closed_loop(K, p.damping_Nms_per_rad, p.velocity_cutoff_Hz, T, dev, tuned.hand,
-                        p.chain_params.L3_mm)
+    cl = tn.closed_loop(
+        K, p.damping_Nms_per_rad, p.velocity_cutoff_Hz, T, dev, tuned.hand, p.chain_params.L3_mm
+    )
     decays = sim["amp_last_rad"] < sim["amp_first_rad"] and not sim["hit_stop"]
     assert decays == cl["stable"]
     assert sim["growing"] == (not cl["stable"])
@@ -161,8 +182,10 @@ def test_pole_check_agrees_with_energy_simulation(sur, tuned, factor):
     if cl["stable"]:
         ratio = sim["amp_last_rad"] / sim["amp_first_rad"]
         assert ratio == pytest.approx(cl["max_pole_mag"] ** 400, rel=0.35)
-    passive = tn.required_damping(K, p.damping_Nms_per_rad, T, p.velocity_cutoff_Hz,
-                                  1) < dev.damping_Nms_per_rad
+    passive = (
+        tn.required_damping(K, p.damping_Nms_per_rad, T, p.velocity_cutoff_Hz, 1)
+        < dev.damping_Nms_per_rad
+    )
     if passive:
         assert sim["net_generated_J"] <= 1e-9
     if not cl["stable"]:
@@ -179,13 +202,30 @@ def test_closed_loop_margins_shape(tuned):
 def test_cli_tune_writes_outputs(sur, tmp_path, capsys):
     sj = sur.save(tmp_path / "sur.json")
     out = tmp_path / "tune"
-    rc = main(["tune", "--surrogate", str(sj), "--material", "le,mr", "--thickness", "1.0,2.0",
-               "--out", str(out)])
+    rc = main(
+        [
+            "tune",
+            "--surrogate",
+            str(sj),
+            "--material",
+            "le,mr",
+            "--thickness",
+            "1.0,2.0",
+            "--out",
+            str(out),
+        ]
+    )
     assert rc == 0, capsys.readouterr().err
     text = capsys.readouterr().out
     assert "chosen: k_c =" in text and "passive everywhere" in text
-    for name in ("controller.json", "tuning.json", "tuning.txt", "stiffness_vs_theta.png",
-                 "zwidth.png", "bode_impedance.png"):
+    for name in (
+        "controller.json",
+        "tuning.json",
+        "tuning.txt",
+        "stiffness_vs_theta.png",
+        "zwidth.png",
+        "bode_impedance.png",
+    ):
         assert (out / name).stat().st_size > 0, name
     p = load_params(out / "controller.json")
     tj = json.loads((out / "tuning.json").read_text())
@@ -194,8 +234,22 @@ def test_cli_tune_writes_outputs(sur, tmp_path, capsys):
     assert p.velocity_cutoff_Hz == tj["chosen"]["velocity_cutoff_Hz"]
     assert json.loads((out / "controller.json").read_text())["tuning"]["passive_everywhere"]
     # a slower rate needs a softer coupling
-    rc = main(["tune", "--surrogate", str(sj), "--material", "le", "--thickness", "2.0",
-               "--rate-hz", "500", "--no-plots", "--out", str(tmp_path / "t500")])
+    rc = main(
+        [
+            "tune",
+            "--surrogate",
+            str(sj),
+            "--material",
+            "le",
+            "--thickness",
+            "2.0",
+            "--rate-hz",
+            "500",
+            "--no-plots",
+            "--out",
+            str(tmp_path / "t500"),
+        ]
+    )
     assert rc == 0
     p500 = load_params(tmp_path / "t500" / "controller.json")
     assert p500.sample_time_s == pytest.approx(2e-3)
@@ -290,8 +344,11 @@ def test_tune_with_prony_halves_the_coupling(sur):
     bad = replace(rp.params, coupling_stiffness_N_per_mm=kc0)
     K = max(float(o.K_Nm_per_rad.max()) for o in tn.operating_points(sur, bad, [2.0], ["le"], 45))
     p = rp.params
-    assert tn.required_damping(K, p.damping_Nms_per_rad, T, p.velocity_cutoff_Hz, 1) * sm[
-        "safety_factor"] > rp.device.damping_Nms_per_rad
+    assert (
+        tn.required_damping(K, p.damping_Nms_per_rad, T, p.velocity_cutoff_Hz, 1)
+        * sm["safety_factor"]
+        > rp.device.damping_Nms_per_rad
+    )
 
 
 def test_tune_counts_viscous_friction_as_virtual_damping(sur):

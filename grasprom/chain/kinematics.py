@@ -126,7 +126,9 @@ _N_CHECK = 1025  # samples used to check assembly and monotonicity of a paramete
 FloatOrArray = float | NDArray[np.float64]
 
 
-class _Consts(NamedTuple):
+class LinkageConstants(NamedTuple):
+    """Derived constants of a :class:`ChainParams` (mm, rad), for the C core's code generation."""
+
     h: float  # sqrt(L1^2 - d^2), mm
     side: float  # -1 slider behind B (pivot side), +1 beyond
     xc_closed: float  # x_C(theta_closed), mm
@@ -220,12 +222,26 @@ class ChainParams:
     tube_diameter_mm: float = 30.0
     spring_k_N_per_mm: float = 10.0
     spring_preload_N: float = 10.0
-    _c: _Consts = field(init=False, repr=False, compare=False)
+    _c: LinkageConstants = field(init=False, repr=False, compare=False)
+
+    @property
+    def constants(self) -> LinkageConstants:
+        """Derived linkage constants (mm, rad): what the C core's tables are generated from."""
+        return self._c
 
     def __post_init__(self) -> None:
         for name in (
-            "L1_mm", "L2_mm", "L3_mm", "theta_open_deg", "theta_closed_deg", "offset_d_mm",
-            "n_mm", "gap_open_mm", "gap_closed_mm", "tube_diameter_mm", "spring_k_N_per_mm",
+            "L1_mm",
+            "L2_mm",
+            "L3_mm",
+            "theta_open_deg",
+            "theta_closed_deg",
+            "offset_d_mm",
+            "n_mm",
+            "gap_open_mm",
+            "gap_closed_mm",
+            "tube_diameter_mm",
+            "spring_k_N_per_mm",
             "spring_preload_N",
         ):
             v = getattr(self, name)
@@ -307,7 +323,7 @@ class ChainParams:
             )
         xc_closed = float(_xc(th_lo, self.L2_mm, d, h, side))
         xc_open = float(_xc(th_hi, self.L2_mm, d, h, side))
-        consts = _Consts(
+        consts = LinkageConstants(
             h=h,
             side=side,
             xc_closed=xc_closed,
@@ -400,7 +416,15 @@ def _scalar_state(t: float, p: ChainParams) -> tuple[float, float, float, float,
     return _linkage_state(t, p, math.sin, math.cos, math.sqrt)
 
 
-def _array_state(th: NDArray[np.float64], p: ChainParams) -> tuple[Any, ...]:
+def linkage_state(th: NDArray[np.float64], p: ChainParams) -> tuple[Any, ...]:
+    """Linkage state at handle angles ``th`` (rad, no range check), vectorised.
+
+    Returns
+    -------
+    tuple of ndarray
+        ``(x_C, dx_C/dtheta, d2x_C/dtheta2, sin beta, cos beta)``: slider position (mm) and
+        its derivatives (mm/rad, mm/rad^2), and the rod angle.
+    """
     return _linkage_state(th, p, np.sin, np.cos, np.sqrt)
 
 
@@ -436,7 +460,7 @@ def _state(theta_deg: ArrayLike, p: ChainParams) -> tuple[tuple[Any, ...], Any]:
     t = _theta_rad(theta_deg, p)
     if isinstance(t, float):
         return _scalar_state(t, p), t
-    return _array_state(t, p), t
+    return linkage_state(t, p), t
 
 
 def _out(x: FloatOrArray) -> FloatOrArray:
@@ -729,8 +753,14 @@ def plot_transmission(p: ChainParams, path: str | Path, n: int = 221) -> Path:
     ax.plot(th, derived, "C0-", lw=2, label="derived chain (virtual work), $L_3/g'(\\theta)$")
     ax.plot(th, seed, "C3--", lw=2, label="seed 003 eqs (1)-(4), same m/n")
     ax.axvline(p.theta_touch_deg, color="0.6", lw=1, ls=":")
-    ax.text(p.theta_touch_deg - 0.2, 0.5 * float(np.max(derived)),
-            "first touch\n(gap = tube diameter)", color="0.4", fontsize=8, ha="right")
+    ax.text(
+        p.theta_touch_deg - 0.2,
+        0.5 * float(np.max(derived)),
+        "first touch\n(gap = tube diameter)",
+        color="0.4",
+        fontsize=8,
+        ha="right",
+    )
     ax.set_xlabel(r"handle angle $\theta$ (deg)  (closed 0 $\rightarrow$ open)")
     ax.set_ylabel(r"$F_g / F_i$ (%)")
     ax.set_title("Force transmission handle -> jaw (spring excluded)")

@@ -156,8 +156,12 @@ class DeviceParams:
     delay_samples: int = 1
 
     def __post_init__(self) -> None:
-        for name in ("inertia_kg_m2", "damping_Nms_per_rad", "torque_constant_Nm_per_A",
-                     "current_limit_A"):
+        for name in (
+            "inertia_kg_m2",
+            "damping_Nms_per_rad",
+            "torque_constant_Nm_per_A",
+            "current_limit_A",
+        ):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
                 raise ValueError(f"DeviceParams.{name} must be finite and > 0, got {v!r}")
@@ -403,8 +407,9 @@ def static_handle_torque_Nm(
     relaxed, no friction, no backlash (the chain angle = the handle angle).
     """
     chain = params.chain_params
-    th = np.degrees(np.clip(np.asarray(theta_rad, dtype=float),
-                            *np.radians(kin.theta_range_deg(chain))))
+    th = np.degrees(
+        np.clip(np.asarray(theta_rad, dtype=float), *np.radians(kin.theta_range_deg(chain)))
+    )
     g = np.asarray(kin.gap_mm(th, chain), dtype=float)
     kc = params.coupling_effective_N_per_mm
     gp = _proxy_gap(s, g, params.thickness_mm, params.material, kc, scale=params.tissue_scale)
@@ -753,12 +758,14 @@ def tune(
             "friction_viscous_N_s_per_mm, raise the rate or the device damping"
         )
     # B is the total virtual damping; the controller's share is what the friction leaves
-    base = replace(base, damping_Nms_per_rad=B - B_visc if B > B_visc else 0.0,
-                   velocity_cutoff_Hz=fc)
+    base = replace(
+        base, damping_Nms_per_rad=B - B_visc if B > B_visc else 0.0, velocity_cutoff_Hz=fc
+    )
 
     def worst(kc: float, n: int = max(n_theta // 4, 12)) -> float:
-        pts = operating_points(s, replace(base, coupling_stiffness_N_per_mm=kc),
-                               thicknesses, materials, n)
+        pts = operating_points(
+            s, replace(base, coupling_stiffness_N_per_mm=kc), thicknesses, materials, n
+        )
         kmax, kmin, _op, _i = _max_K(pts)
         return max(float(required_damping(np.array([kmax, kmin]), B, T, fc, d).max()), 0.0)
 
@@ -849,8 +856,9 @@ def _summarise(
     b, d = device.damping_Nms_per_rad, device.delay_samples
     L3 = params.chain_params.L3_mm
     kc_eff = params.coupling_effective_N_per_mm
-    q = ImpedanceController(replace(params, material=pts[0].material,
-                                    thickness_mm=pts[0].thickness_mm), s).encoder_quantum_rad
+    q = ImpedanceController(
+        replace(params, material=pts[0].material, thickness_mm=pts[0].thickness_mm), s
+    ).encoder_quantum_rad
     kmax, kmin, op, i = _max_K(pts)
     b_req = float(required_damping(np.array([kmax, kmin]), B, T, fc, d).max())
     # raw tissue, without coupling
@@ -861,16 +869,22 @@ def _summarise(
         bad = o.K_raw_Nm_per_rad > k_pass
         if np.any(bad):
             th = o.theta_deg[bad]
-            not_renderable.append({
-                "material": o.material,
-                "thickness_mm": o.thickness_mm,
-                "theta_deg_below": float(np.max(th)),
-                "max_K_raw_Nm_per_rad": float(np.max(o.K_raw_Nm_per_rad)),
-            })
+            not_renderable.append(
+                {
+                    "material": o.material,
+                    "thickness_mm": o.thickness_mm,
+                    "theta_deg_below": float(np.max(th)),
+                    "max_K_raw_Nm_per_rad": float(np.max(o.K_raw_Nm_per_rad)),
+                }
+            )
     active = [
-        {"material": o.material, "thickness_mm": o.thickness_mm,
-         "theta_deg_below": float(np.max(o.theta_deg[o.tissue_stiffness_N_per_mm > kc_eff]))}
-        for o in pts if np.any(o.tissue_stiffness_N_per_mm > kc_eff)
+        {
+            "material": o.material,
+            "thickness_mm": o.thickness_mm,
+            "theta_deg_below": float(np.max(o.theta_deg[o.tissue_stiffness_N_per_mm > kc_eff])),
+        }
+        for o in pts
+        if np.any(o.tissue_stiffness_N_per_mm > kc_eff)
     ]
     with_hand = closed_loop(kmax, B, fc, T, device, hand, L3)
     free = closed_loop(kmax, B, fc, T, device, None, L3)
@@ -883,8 +897,7 @@ def _summarise(
         "safety_factor": safety,
         "device": asdict(device),
         "hand": asdict(hand),
-        "hand_at_pivot": dict(zip(("J_kg_m2", "b_Nms_per_rad", "k_Nm_per_rad"),
-                                  hand.at_pivot(L3))),
+        "hand_at_pivot": dict(zip(("J_kg_m2", "b_Nms_per_rad", "k_Nm_per_rad"), hand.at_pivot(L3))),
         "encoder_quantum_rad": q,
         "chosen": {
             "coupling_stiffness_N_per_mm": params.coupling_stiffness_N_per_mm,
@@ -896,10 +909,14 @@ def _summarise(
         "passive_stiffness_with_margin_Nm_per_rad": k_pass,
         "max_rendered_K_Nm_per_rad": kmax,
         "min_rendered_K_Nm_per_rad": kmin,
-        "max_at": {"material": op.material, "thickness_mm": op.thickness_mm,
-                   "theta_deg": float(op.theta_deg[i]), "gap_mm": float(op.gap_mm[i]),
-                   "jaw_stiffness_N_per_mm": float(op.jaw_stiffness_N_per_mm[i]),
-                   "dgap_dtheta_mm_per_rad": g1},
+        "max_at": {
+            "material": op.material,
+            "thickness_mm": op.thickness_mm,
+            "theta_deg": float(op.theta_deg[i]),
+            "gap_mm": float(op.gap_mm[i]),
+            "jaw_stiffness_N_per_mm": float(op.jaw_stiffness_N_per_mm[i]),
+            "dgap_dtheta_mm_per_rad": g1,
+        },
         "required_damping_Nms_per_rad": b_req,
         "passivity_margin": b / b_req if b_req > 0 else math.inf,
         "passive_everywhere": bool(b_req < b),
@@ -944,23 +961,29 @@ def verify_by_simulation(
     at = summary["max_at"]
     p0 = replace(params, material=at["material"], thickness_mm=at["thickness_mm"])
     out = {}
-    for name, p in (("chosen", p0),
-                    ("rejected", replace(p0, coupling_stiffness_N_per_mm=reject_factor
-                                         * p0.coupling_stiffness_N_per_mm))):
+    for name, p in (
+        ("chosen", p0),
+        (
+            "rejected",
+            replace(p0, coupling_stiffness_N_per_mm=reject_factor * p0.coupling_stiffness_N_per_mm),
+        ),
+    ):
         sim = simulate_hold(s, p, device, hand, theta_start_offset_deg=1.0)
         op = rendered_stiffness(s, p, np.array([sim["theta_hold_deg"]]))
         K = float(op.K_Nm_per_rad[0])
         Bt = virtual_damping_Nms_per_rad(p)
-        cl = closed_loop(K, Bt, p.velocity_cutoff_Hz, p.sample_time_s,
-                         device, hand, p.chain_params.L3_mm)
+        cl = closed_loop(
+            K, Bt, p.velocity_cutoff_Hz, p.sample_time_s, device, hand, p.chain_params.L3_mm
+        )
         out[name] = {
             "coupling_stiffness_N_per_mm": p.coupling_stiffness_N_per_mm,
             "material": p.material,
             "thickness_mm": p.thickness_mm,
             "theta_hold_deg": sim["theta_hold_deg"],
             "K_Nm_per_rad": K,
-            "required_damping_Nms_per_rad": float(required_damping(
-                K, Bt, p.sample_time_s, p.velocity_cutoff_Hz, device.delay_samples)),
+            "required_damping_Nms_per_rad": float(
+                required_damping(K, Bt, p.sample_time_s, p.velocity_cutoff_Hz, device.delay_samples)
+            ),
             "net_generated_J": sim["net_generated_J"],
             "controller_excess_J": sim["controller_excess_J"],
             "amp_first_rad": sim["amp_first_rad"],
@@ -1006,8 +1029,10 @@ def format_report(sm: dict[str, Any]) -> str:
         f"{sm['abbott_okamura']['viscous_term_Nm_per_rad']:.4g}, Coulomb "
         f"{sm['abbott_okamura']['coulomb_term_Nm_per_rad']:.4g}; not used for k_c)",
     ]
-    for name, key in (("with hand", "closed_loop_with_hand"),
-                      ("device alone", "closed_loop_device_alone")):
+    for name, key in (
+        ("with hand", "closed_loop_with_hand"),
+        ("device alone", "closed_loop_device_alone"),
+    ):
         cl = sm[key]
         lines.append(
             f"closed loop {name}: max |pole| = {cl['max_pole_mag']:.5f} "
@@ -1147,8 +1172,9 @@ def simulate_hold(
     th_lo, th_hi = (math.radians(v) for v in kin.theta_range_deg(chain))
     if theta_hold_deg is None:
         op = rendered_stiffness(s, params)
-        theta_hold_deg = max(float(op.theta_deg[int(np.argmax(op.K_Nm_per_rad))]),
-                             math.degrees(th_lo) + 0.5)
+        theta_hold_deg = max(
+            float(op.theta_deg[int(np.argmax(op.K_Nm_per_rad))]), math.degrees(th_lo) + 0.5
+        )
     th_hold = min(max(math.radians(theta_hold_deg), th_lo), th_hi)
     tau_push = float(static_handle_torque_Nm(s, params, np.array([th_hold]))[0])
     th = min(th_hold + math.radians(theta_start_offset_deg), th_hi)
@@ -1247,10 +1273,16 @@ def plot_tuning(result: TuningResult, out_dir: str | Path) -> dict[str, Path]:
         cmap = __import__("matplotlib").colormaps["viridis"]
         for n_, o in enumerate(ops):
             col = cmap(n_ / max(len(ops) - 1, 1))
-            ax.semilogy(o.theta_deg, np.maximum(o.K_Nm_per_rad, 1e-3), color=col, lw=1.2,
-                        label=f"t={o.thickness_mm:g}" if n_ in (0, len(ops) - 1) else None)
-            ax.semilogy(o.theta_deg, np.maximum(o.K_raw_Nm_per_rad, 1e-3), color=col, lw=0.6,
-                        ls=":")
+            ax.semilogy(
+                o.theta_deg,
+                np.maximum(o.K_Nm_per_rad, 1e-3),
+                color=col,
+                lw=1.2,
+                label=f"t={o.thickness_mm:g}" if n_ in (0, len(ops) - 1) else None,
+            )
+            ax.semilogy(
+                o.theta_deg, np.maximum(o.K_raw_Nm_per_rad, 1e-3), color=col, lw=0.6, ls=":"
+            )
         ax.axhline(k_pass, color="C3", lw=1.5, label="passive bound")
         ax.set_title(f"{m}: rendered K (solid), raw tissue (dotted)", fontsize=9)
         ax.set_xlabel(r"handle angle $\theta$ (deg)")
@@ -1268,8 +1300,14 @@ def plot_tuning(result: TuningResult, out_dir: str | Path) -> dict[str, Path]:
     fig = Figure(figsize=(6.0, 4.4))
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
-    ax.fill_between(Bs, 0, Ks, color="C2", alpha=0.25,
-                    label=f"passive (delay {dev.delay_samples}, cutoff {fc:g} Hz)")
+    ax.fill_between(
+        Bs,
+        0,
+        Ks,
+        color="C2",
+        alpha=0.25,
+        label=f"passive (delay {dev.delay_samples}, cutoff {fc:g} Hz)",
+    )
     ax.plot(Bs, K0, "k--", lw=1, label="Colgate b > KT/2 + |B| (no delay)")
     allK = np.concatenate([o.K_Nm_per_rad for o in result.points])
     ax.plot(np.full_like(allK, B), allK, "C0.", ms=2, label="operating points (chosen B)")
@@ -1320,8 +1358,11 @@ def write_outputs(result: TuningResult, out_dir: str | Path, plots: bool = True)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     d = result.to_dict()
-    files = {"controller": out / "controller.json", "tuning": out / "tuning.json",
-             "report": out / "tuning.txt"}
+    files = {
+        "controller": out / "controller.json",
+        "tuning": out / "tuning.json",
+        "report": out / "tuning.txt",
+    }
     save_params(result.params, files["controller"], extra={"tuning": d})
     files["tuning"].write_text(json.dumps(d, indent=2))
     files["report"].write_text(result.report() + "\n")

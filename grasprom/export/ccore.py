@@ -1,6 +1,7 @@
 """The C core of the controller: generated tables header, host build, ctypes binding.
 
-The C sources live in the top-level ``fmu/`` tree (:mod:`grasprom.paths`) (``grasp_core.c/h``); :func:`write_tables_header`
+The C sources (``grasp_core.c/h``) live in the top-level ``fmu/`` tree (:mod:`grasprom.paths`);
+:func:`write_tables_header`
 generates ``grasp_tables.h`` (surrogate curves and chain constants as exact hexadecimal
 floating-point literals) from the Python objects, so nothing is copied by hand between Python,
 C and the FMU/Arduino exports.  :class:`CCore` compiles the core for the host with ``gcc``
@@ -59,7 +60,7 @@ def _array(name: str, values, ctype: str = "double") -> str:
 
 def chain_constants(chain: kin.ChainParams) -> dict[str, float]:
     """Constants of ``gc_chain_t`` (mm, rad, N) for a chain (spring rate is a run-time param)."""
-    c = chain._c
+    c = chain.constants
     return {
         "L2": chain.L2_mm,
         "d": chain.offset_d_mm,
@@ -102,7 +103,7 @@ def tables_source(surrogate: Surrogate, chain: kin.ChainParams) -> str:
     ]
     mats = []
     for mi, name in enumerate(MATERIAL_NAMES):
-        tab = surrogate._table(name)
+        tab = surrogate.table(name)
         curves = []
         for ci, (xs, c0, c1, c2, c3, _x0, _xn) in enumerate(tab.s_curves):
             p = f"gc_{name}_{ci}"
@@ -170,23 +171,27 @@ class _Params(ctypes.Structure):
 
 
 class _Output(ctypes.Structure):
-    _fields_ = [
-        (n, ctypes.c_double)
-        for n in (
-            "torque",
-            "force_handle",
-            "force_handle_spring",
-            "force_jaw",
-            "force_tissue",
-            "gap",
-            "proxy_gap",
-            "theta_deg",
-            "velocity",
-        )
-    ] + [
-        (n, ctypes.c_int)
-        for n in ("contact", "tissue_warning", "coupling_active", "saturated", "theta_clamped")
-    ] + [("theta_chain_deg", ctypes.c_double), ("force_handle_friction", ctypes.c_double)]
+    _fields_ = (
+        [
+            (n, ctypes.c_double)
+            for n in (
+                "torque",
+                "force_handle",
+                "force_handle_spring",
+                "force_jaw",
+                "force_tissue",
+                "gap",
+                "proxy_gap",
+                "theta_deg",
+                "velocity",
+            )
+        ]
+        + [
+            (n, ctypes.c_int)
+            for n in ("contact", "tissue_warning", "coupling_active", "saturated", "theta_clamped")
+        ]
+        + [("theta_chain_deg", ctypes.c_double), ("force_handle_friction", ctypes.c_double)]
+    )
 
 
 def c_params(params: ControllerParams) -> _Params:

@@ -6,7 +6,8 @@ FMI state machine; ``fmi2_wrapper.c`` / ``fmi3_wrapper.c`` are the FMI glue.  Ev
 describes the model is generated here from the Python objects, from one variable table
 (:func:`variables`):
 
-* ``grasp_tables.h`` -- surrogate curves and chain constants (:func:`grasprom.export.ccore.tables_source`),
+* ``grasp_tables.h`` -- surrogate curves and chain constants
+  (:func:`~grasprom.export.ccore.tables_source`),
 * ``grasp_fmu_config.h`` -- value references, start/min/max, instantiation token,
 * ``modelDescription.xml`` (FMI 2 or 3), ``sources/buildDescription.xml`` (FMI 3),
 * ``documentation/index.html`` -- variable table, equations, status policy.
@@ -40,10 +41,10 @@ from xml.sax.saxutils import quoteattr
 
 from grasprom import __version__
 from grasprom.chain import kinematics as kin
-from grasprom.export.ccore import CORE_SOURCES, tables_source
-from grasprom.paths import c_file
 from grasprom.control.controller import ControllerParams
+from grasprom.export.ccore import CORE_SOURCES, tables_source
 from grasprom.fe.materials import MATERIAL_NAMES
+from grasprom.paths import c_file
 from grasprom.surrogate import Surrogate
 
 MODEL_IDENTIFIER = "GraspController"
@@ -88,53 +89,213 @@ THETA_DOT_MAX = 1e3
 # parameters exposed by the FMU: name, ControllerParams field, factor to SI, unit, display
 # unit, min, max (SI), description.  thickness bounds come from the surrogate.
 _PARAMETERS = (
-    ("spring_k", "spring_k_N_per_mm", 1e3, "N/m", "N/mm", 0.0, 1e6,
-     "return-spring rate of the instrument"),
-    ("damping", "damping_Nms_per_rad", 1.0, "N.m.s/rad", None, 0.0, 10.0,
-     "virtual damping at the handle pivot, on the handle velocity"),
-    ("velocity_cutoff", "velocity_cutoff_Hz", 1.0, "Hz", None, 0.01, 1e5,
-     "cutoff of the first-order low-pass filter of the velocity estimate "
-     "(must be below the Nyquist frequency 0.5/sample_time)"),
-    ("pulley_radius", "pulley_radius_mm", 1e-3, "m", "mm", 1e-3, 0.5,
-     "motor pulley radius: torque = cable tension x radius"),
-    ("torque_limit", "torque_limit_Nm", 1.0, "N.m", None, 1e-6, 100.0,
-     "motor torque saturation (symmetric)"),
-    ("sample_time", "sample_time_s", 1.0, "s", "ms", 1e-5, 1.0,
-     "controller period; the communication step must be a multiple of it"),
-    ("coupling_stiffness", "coupling_stiffness_N_per_mm", 1e3, "N/m", "N/mm", 1.0, 1e8,
-     "virtual coupling stiffness at the jaw (bound on the rendered jaw stiffness)"),
-    ("force_warning", "force_warning_N", 1.0, "N", None, 1e-3, 1e5,
-     "tissue-safety threshold on the tissue jaw force"),
-    ("pressure_warning", "pressure_warning_MPa", 1e6, "Pa", "kPa", 1.0, 1e9,
-     "tissue-safety threshold on the mean contact pressure"),
-    ("jaw_length", "jaw_length_mm", 1e-3, "m", "mm", 1e-4, 1.0,
-     "length of tube under the jaws (contact area for the mean pressure)"),
-    ("diameter", "diameter_mm", 1e-3, "m", "mm", 1e-3, 1.0,
-     "tube outer diameter (contact width of the flattened tube); must exceed 2 x thickness"),
+    (
+        "spring_k",
+        "spring_k_N_per_mm",
+        1e3,
+        "N/m",
+        "N/mm",
+        0.0,
+        1e6,
+        "return-spring rate of the instrument",
+    ),
+    (
+        "damping",
+        "damping_Nms_per_rad",
+        1.0,
+        "N.m.s/rad",
+        None,
+        0.0,
+        10.0,
+        "virtual damping at the handle pivot, on the handle velocity",
+    ),
+    (
+        "velocity_cutoff",
+        "velocity_cutoff_Hz",
+        1.0,
+        "Hz",
+        None,
+        0.01,
+        1e5,
+        "cutoff of the first-order low-pass filter of the velocity estimate "
+        "(must be below the Nyquist frequency 0.5/sample_time)",
+    ),
+    (
+        "pulley_radius",
+        "pulley_radius_mm",
+        1e-3,
+        "m",
+        "mm",
+        1e-3,
+        0.5,
+        "motor pulley radius: torque = cable tension x radius",
+    ),
+    (
+        "torque_limit",
+        "torque_limit_Nm",
+        1.0,
+        "N.m",
+        None,
+        1e-6,
+        100.0,
+        "motor torque saturation (symmetric)",
+    ),
+    (
+        "sample_time",
+        "sample_time_s",
+        1.0,
+        "s",
+        "ms",
+        1e-5,
+        1.0,
+        "controller period; the communication step must be a multiple of it",
+    ),
+    (
+        "coupling_stiffness",
+        "coupling_stiffness_N_per_mm",
+        1e3,
+        "N/m",
+        "N/mm",
+        1.0,
+        1e8,
+        "virtual coupling stiffness at the jaw (bound on the rendered jaw stiffness)",
+    ),
+    (
+        "force_warning",
+        "force_warning_N",
+        1.0,
+        "N",
+        None,
+        1e-3,
+        1e5,
+        "tissue-safety threshold on the tissue jaw force",
+    ),
+    (
+        "pressure_warning",
+        "pressure_warning_MPa",
+        1e6,
+        "Pa",
+        "kPa",
+        1.0,
+        1e9,
+        "tissue-safety threshold on the mean contact pressure",
+    ),
+    (
+        "jaw_length",
+        "jaw_length_mm",
+        1e-3,
+        "m",
+        "mm",
+        1e-4,
+        1.0,
+        "length of tube under the jaws (contact area for the mean pressure)",
+    ),
+    (
+        "diameter",
+        "diameter_mm",
+        1e-3,
+        "m",
+        "mm",
+        1e-3,
+        1.0,
+        "tube outer diameter (contact width of the flattened tube); must exceed 2 x thickness",
+    ),
     # rendering of diagnosed effects (grasprom diagnose -> --augmented); neutral defaults
-    ("tissue_scale", "tissue_scale", 1.0, None, None, 1e-3, 1e3,
-     "factor on the tissue force and stiffness (tissue_stiffness_scale)"),
-    ("jaw_compliance", "jaw_compliance_mm_per_N", 1e-3, "m/N", "mm/N", 0.0, 1.0,
-     "series compliance of jaw + mechanism: coupling 1/(1/k_c + C) (jaw_compliance)"),
-    ("backlash", "backlash_deg", math.pi / 180.0, "rad", "deg", 0.0, 0.5,
-     "play between the encoder and the linkage, total width (backlash)"),
-    ("friction_coulomb", "friction_coulomb_N", 1.0, "N", None, 0.0, 1e3,
-     "Coulomb friction at the finger, in the direction of the last motion (mechanism_friction)"),
-    ("friction_load_coefficient", "friction_load_coefficient", 1.0, None, None, 0.0, 10.0,
-     "load-proportional Coulomb friction, x |tissue handle force|"),
-    ("friction_viscous", "friction_viscous_N_s_per_mm", 1e3, "N.s/m", "N.s/mm", 0.0, 1e6,
-     "viscous friction at the finger, on the finger speed"),
-    ("friction_velocity_threshold", "friction_velocity_threshold_mm_per_s", 1e-3, "m/s",
-     "mm/s", 1e-6, 10.0, "finger speed above which the friction direction follows the motion"),
+    (
+        "tissue_scale",
+        "tissue_scale",
+        1.0,
+        None,
+        None,
+        1e-3,
+        1e3,
+        "factor on the tissue force and stiffness (tissue_stiffness_scale)",
+    ),
+    (
+        "jaw_compliance",
+        "jaw_compliance_mm_per_N",
+        1e-3,
+        "m/N",
+        "mm/N",
+        0.0,
+        1.0,
+        "series compliance of jaw + mechanism: coupling 1/(1/k_c + C) (jaw_compliance)",
+    ),
+    (
+        "backlash",
+        "backlash_deg",
+        math.pi / 180.0,
+        "rad",
+        "deg",
+        0.0,
+        0.5,
+        "play between the encoder and the linkage, total width (backlash)",
+    ),
+    (
+        "friction_coulomb",
+        "friction_coulomb_N",
+        1.0,
+        "N",
+        None,
+        0.0,
+        1e3,
+        "Coulomb friction at the finger, in the direction of the last motion (mechanism_friction)",
+    ),
+    (
+        "friction_load_coefficient",
+        "friction_load_coefficient",
+        1.0,
+        None,
+        None,
+        0.0,
+        10.0,
+        "load-proportional Coulomb friction, x |tissue handle force|",
+    ),
+    (
+        "friction_viscous",
+        "friction_viscous_N_s_per_mm",
+        1e3,
+        "N.s/m",
+        "N.s/mm",
+        0.0,
+        1e6,
+        "viscous friction at the finger, on the finger speed",
+    ),
+    (
+        "friction_velocity_threshold",
+        "friction_velocity_threshold_mm_per_s",
+        1e-3,
+        "m/s",
+        "mm/s",
+        1e-6,
+        10.0,
+        "finger speed above which the friction direction follows the motion",
+    ),
     *(
-        (f"prony_g_{i + 1}", f"prony_g[{i}]", 1.0, None, None, 0.0, 100.0,
-         f"Prony coefficient {i + 1} of the viscoelastic jaw-force rendering "
-         "(tissue_viscoelasticity; 0 = term off)")
+        (
+            f"prony_g_{i + 1}",
+            f"prony_g[{i}]",
+            1.0,
+            None,
+            None,
+            0.0,
+            100.0,
+            f"Prony coefficient {i + 1} of the viscoelastic jaw-force rendering "
+            "(tissue_viscoelasticity; 0 = term off)",
+        )
         for i in range(4)
     ),
     *(
-        (f"prony_tau_{i + 1}", f"prony_tau_s[{i}]", 1.0, "s", None, 1e-6, 1e6,
-         f"relaxation time of Prony term {i + 1}")
+        (
+            f"prony_tau_{i + 1}",
+            f"prony_tau_s[{i}]",
+            1.0,
+            "s",
+            None,
+            1e-6,
+            1e6,
+            f"relaxation time of Prony term {i + 1}",
+        )
         for i in range(4)
     ),
 )
@@ -150,6 +311,8 @@ def _param_value(params: ControllerParams, field_: str) -> float:
         g, tau = prony_padded(params)
         return float((g if name == "prony_g" else tau)[int(idx)])
     return float(getattr(params, field_))
+
+
 ENCODER_COUNTS_MAX = 2**30
 
 
@@ -251,48 +414,161 @@ def variables(params: ControllerParams, surrogate: Surrogate) -> list[Variable]:
         out.append(Variable(name, len(out), type_, causality, variability, description, **kw))
 
     add("time", "Real", "independent", "continuous", "simulation time", unit="s")
-    add("theta", "Real", "input", "continuous",
+    add(
+        "theta",
+        "Real",
+        "input",
+        "continuous",
         "handle angle (decreases when closing; 0 = closed end stop, as in grasprom simulate); "
         "clamped into [min, max], NaN holds the last valid angle",
-        unit="rad", display_unit="deg", start=th_hi, min=th_lo, max=th_hi)
-    add("theta_dot", "Real", "input", "continuous",
+        unit="rad",
+        display_unit="deg",
+        start=th_hi,
+        min=th_lo,
+        max=th_hi,
+    )
+    add(
+        "theta_dot",
+        "Real",
+        "input",
+        "continuous",
         "handle angular velocity, used for the damping when use_theta_dot is true "
         "(else ignored: the velocity is estimated from theta)",
-        unit="rad/s", display_unit="deg/s", start=0.0, min=-THETA_DOT_MAX, max=THETA_DOT_MAX)
-    add("thickness", "Real", "parameter", "fixed",
+        unit="rad/s",
+        display_unit="deg/s",
+        start=0.0,
+        min=-THETA_DOT_MAX,
+        max=THETA_DOT_MAX,
+    )
+    add(
+        "thickness",
+        "Real",
+        "parameter",
+        "fixed",
         "colon wall thickness (clamped into the tabulated range of the material)",
-        unit="m", display_unit="mm", start=params.thickness_mm * 1e-3, min=t_lo, max=t_hi)
-    add("material", "Integer", "parameter", "fixed",
+        unit="m",
+        display_unit="mm",
+        start=params.thickness_mm * 1e-3,
+        min=t_lo,
+        max=t_hi,
+    )
+    add(
+        "material",
+        "Integer",
+        "parameter",
+        "fixed",
         "tissue material model: " + ", ".join(f"{i} {m}" for i, m in enumerate(MATERIAL_NAMES)),
-        start=MATERIAL_NAMES.index(params.material), min=0, max=len(MATERIAL_NAMES) - 1)
+        start=MATERIAL_NAMES.index(params.material),
+        min=0,
+        max=len(MATERIAL_NAMES) - 1,
+    )
     for name, field_, factor, unit, disp, lo, hi, desc in _PARAMETERS:
-        add(name, "Real", "parameter", "fixed", desc, unit=unit, display_unit=disp,
-            start=_param_value(params, field_) * factor, min=lo, max=hi)
-    add("encoder_counts", "Integer", "parameter", "fixed",
+        add(
+            name,
+            "Real",
+            "parameter",
+            "fixed",
+            desc,
+            unit=unit,
+            display_unit=disp,
+            start=_param_value(params, field_) * factor,
+            min=lo,
+            max=hi,
+        )
+    add(
+        "encoder_counts",
+        "Integer",
+        "parameter",
+        "fixed",
         "motor encoder resolution in counts per revolution (0: no quantisation of theta)",
-        start=int(params.encoder_counts_per_rev), min=0, max=ENCODER_COUNTS_MAX)
-    add("render_spring", "Boolean", "parameter", "fixed",
+        start=int(params.encoder_counts_per_rev),
+        min=0,
+        max=ENCODER_COUNTS_MAX,
+    )
+    add(
+        "render_spring",
+        "Boolean",
+        "parameter",
+        "fixed",
         "include the instrument's return spring in the rendered handle force",
-        start=int(bool(params.render_spring)))
-    add("use_theta_dot", "Boolean", "parameter", "fixed",
+        start=int(bool(params.render_spring)),
+    )
+    add(
+        "use_theta_dot",
+        "Boolean",
+        "parameter",
+        "fixed",
         "damp the theta_dot input instead of the filtered backward-difference estimate",
-        start=0)
-    add("torque", "Real", "output", "discrete", "motor torque command, after saturation",
-        unit="N.m", start=0.0, min=-tl_max, max=tl_max)
-    add("force_handle", "Real", "output", "discrete",
+        start=0,
+    )
+    add(
+        "torque",
+        "Real",
+        "output",
+        "discrete",
+        "motor torque command, after saturation",
+        unit="N.m",
+        start=0.0,
+        min=-tl_max,
+        max=tl_max,
+    )
+    add(
+        "force_handle",
+        "Real",
+        "output",
+        "discrete",
         "rendered handle force (positive resists closing) = torque / pulley_radius",
-        unit="N", start=0.0, min=-tl_max / r_min, max=tl_max / r_min)
-    add("force_jaw", "Real", "output", "discrete",
-        "rendered jaw force through the virtual coupling", unit="N", start=0.0, min=0.0,
-        max=f_max)
-    add("force_tissue", "Real", "output", "discrete",
-        "tissue force of the surrogate at the kinematic gap", unit="N", start=0.0, min=0.0,
-        max=f_max)
-    add("gap", "Real", "output", "discrete", "jaw gap from the kinematic chain", unit="m",
-        display_unit="mm", start=kin.gap_mm(th_hi_deg, chain) * 1e-3, min=g_min, max=g_max)
-    add("velocity", "Real", "output", "discrete",
+        unit="N",
+        start=0.0,
+        min=-tl_max / r_min,
+        max=tl_max / r_min,
+    )
+    add(
+        "force_jaw",
+        "Real",
+        "output",
+        "discrete",
+        "rendered jaw force through the virtual coupling",
+        unit="N",
+        start=0.0,
+        min=0.0,
+        max=f_max,
+    )
+    add(
+        "force_tissue",
+        "Real",
+        "output",
+        "discrete",
+        "tissue force of the surrogate at the kinematic gap",
+        unit="N",
+        start=0.0,
+        min=0.0,
+        max=f_max,
+    )
+    add(
+        "gap",
+        "Real",
+        "output",
+        "discrete",
+        "jaw gap from the kinematic chain",
+        unit="m",
+        display_unit="mm",
+        start=kin.gap_mm(th_hi_deg, chain) * 1e-3,
+        min=g_min,
+        max=g_max,
+    )
+    add(
+        "velocity",
+        "Real",
+        "output",
+        "discrete",
         "handle velocity used for the damping (filtered estimate or theta_dot)",
-        unit="rad/s", display_unit="deg/s", start=0.0, min=-v_max, max=v_max)
+        unit="rad/s",
+        display_unit="deg/s",
+        start=0.0,
+        min=-v_max,
+        max=v_max,
+    )
     for name, desc in (
         ("contact", "the jaws touch the tissue (surrogate force > 0)"),
         ("tissue_warning", "tissue force or mean contact pressure reached its threshold"),
@@ -334,7 +610,8 @@ OUTPUT_COLUMNS = {
     "saturated": ("saturated", None),
     "theta_clamped": ("theta_clamped", None),
 }
-"""FMU output -> (column of :func:`grasprom.control.controller.simulate`, factor to SI; None: Boolean)."""
+"""FMU output -> (column of :func:`~grasprom.control.controller.simulate`, factor to SI;
+None: Boolean)."""
 
 
 def instantiation_token(tables: str, config_values: str, fmi_version: int) -> str:
@@ -353,8 +630,12 @@ def _c_double(x: float) -> str:
 def config_header(vars_: list[Variable], token: str) -> str:
     """C source of ``grasp_fmu_config.h`` (value references and the variable table)."""
     types = {"Real": "GF_REAL", "Integer": "GF_INTEGER", "Boolean": "GF_BOOLEAN"}
-    caus = {"independent": "GF_INDEPENDENT", "parameter": "GF_PARAMETER", "input": "GF_INPUT",
-            "output": "GF_OUTPUT"}
+    caus = {
+        "independent": "GF_INDEPENDENT",
+        "parameter": "GF_PARAMETER",
+        "input": "GF_INPUT",
+        "output": "GF_OUTPUT",
+    }
     lines = [
         "/* Generated by grasprom.export.fmu.config_header -- do not edit.  Values SI. */",
         "#ifndef GRASP_FMU_CONFIG_H",
@@ -482,9 +763,7 @@ def model_description(
     lines.append("  <LogCategories>")
     lines += [f'    <Category name="{n}" description="{d}"/>' for n, d in LOG_CATEGORIES]
     lines.append("  </LogCategories>")
-    lines.append(
-        f'  <DefaultExperiment startTime="0.0" stopTime="{stop!r}" stepSize="{step!r}"/>'
-    )
+    lines.append(f'  <DefaultExperiment startTime="0.0" stopTime="{stop!r}" stepSize="{step!r}"/>')
     lines.append("  <ModelVariables>")
     for v in vars_:
         common = (
@@ -549,8 +828,19 @@ def documentation_html(
     rows = []
     for v in vars_:
         t = v.type if fmi_version == 2 else _FMI3_TYPE[v.type]
-        fields = (v.name, v.vr, t, v.causality, v.variability, v.unit, v.display_unit,
-                  fmt(v.start, v.type), fmt(v.min, v.type), fmt(v.max, v.type), v.description)
+        fields = (
+            v.name,
+            v.vr,
+            t,
+            v.causality,
+            v.variability,
+            v.unit,
+            v.display_unit,
+            fmt(v.start, v.type),
+            fmt(v.min, v.type),
+            fmt(v.max, v.type),
+            v.description,
+        )
         rows.append("<tr>" + "".join(f"<td>{cell(x)}</td>" for x in fields) + "</tr>")
     mats = ", ".join(f"{i} = {m}" for i, m in enumerate(MATERIAL_NAMES))
     return f"""<!DOCTYPE html>

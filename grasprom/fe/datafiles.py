@@ -279,7 +279,8 @@ def provenance() -> dict[str, Any]:
     return {"versions": package_versions(), **git_revision()}
 
 
-def _now() -> str:
+def now_iso() -> str:
+    """The current UTC time, ISO 8601 to the second (the time stamps of case files)."""
     return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
 
 
@@ -401,7 +402,7 @@ def write_case(
         "versions": dict(prov.get("versions", {})),
         "git_revision": prov.get("git_revision"),
         "git_dirty": prov.get("git_dirty"),
-        "written_at": _now(),
+        "written_at": now_iso(),
     }
     atomic_write_json(files.json, meta)
     return files
@@ -542,7 +543,7 @@ def write_error(directory: str | os.PathLike[str], stem: str, message: str, tb: 
         The error file.
     """
     path = Path(directory) / f"{stem}{ERROR_SUFFIX}"
-    text = f"case: {stem}\ntime: {_now()}\nerror: {message}\n\n{tb}"
+    text = f"case: {stem}\ntime: {now_iso()}\nerror: {message}\n\n{tb}"
     atomic_write_bytes(path, text.encode())
     return path
 
@@ -643,7 +644,7 @@ def write_manifest(
             "input_hash": input_hash(s),
         }
     case_list = sorted(cases.values(), key=lambda c: (c["material"], c["thickness_mm"]))
-    now = _now()
+    now = now_iso()
     manifest: dict[str, Any] = {
         "schema_version": SCHEMA_VERSION,
         "grasprom_version": __version__,

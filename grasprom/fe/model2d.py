@@ -302,8 +302,11 @@ def discretise(outer_radius: float, thickness: float, mesh: MeshSpec) -> _Discre
         xc = m.p[:, m.t].mean(axis=1)  # (2, ne)
         hsz = np.sqrt(dx.sum(axis=1))
         psi = np.stack(
-            [np.ones((ne, nq)), (xq[0] - xc[0][:, None]) / hsz[:, None],
-             (xq[1] - xc[1][:, None]) / hsz[:, None]],
+            [
+                np.ones((ne, nq)),
+                (xq[0] - xc[0][:, None]) / hsz[:, None],
+                (xq[1] - xc[1][:, None]) / hsz[:, None],
+            ],
             axis=-1,
         )
     else:

@@ -30,8 +30,8 @@ from pathlib import Path
 from typing import Any
 
 from grasprom.fe import datafiles as df
-from grasprom.fe.model2d import CaseResult, CaseSpec, MeshSpec
 from grasprom.fe.materials import MATERIAL_NAMES
+from grasprom.fe.model2d import CaseResult, CaseSpec, MeshSpec
 
 KNOWN_MATERIALS = MATERIAL_NAMES
 """Material keys: Mooney-Rivlin, neo-Hookean, large-strain linear elastic."""
@@ -580,7 +580,7 @@ def run_sweep(
         out,
         specs,
         last_run={
-            "finished": df._now(),
+            "finished": df.now_iso(),
             "workers": workers,
             "scheduler": scheduler,
             "total": summary.total,

@@ -143,9 +143,7 @@ EFFECTS: dict[str, EffectSpec] = {
         EffectSpec(
             "tissue_viscoelasticity",
             "tissue",
-            tuple(
-                ParamSpec(f"g_{tau:g}s", "1", "linear", 0.0, 10.0) for tau in PRONY_TAUS_S
-            ),
+            tuple(ParamSpec(f"g_{tau:g}s", "1", "linear", 0.0, 10.0) for tau in PRONY_TAUS_S),
             "quasi-linear viscoelastic Prony series on the surrogate (elastic = relaxed) force: "
             "Fg = Fe + sum_i g_i int exp(-(t-s)/tau_i) dFe(s), tau = 0.03, 0.2, 1, 5 s; the jaw "
             "force is clipped at 0 (the jaws cannot pull)",
@@ -167,7 +165,11 @@ EFFECTS: dict[str, EffectSpec] = {
             "mechanism",
             (
                 ParamSpec(
-                    "play_deg", "deg", "nonlinear", 0.0, 1.2,
+                    "play_deg",
+                    "deg",
+                    "nonlinear",
+                    0.0,
+                    1.2,
                     grid=(0.0, 0.03, 0.06, 0.1, 0.15, 0.22, 0.32, 0.5, 0.8),
                 ),
             ),
@@ -179,7 +181,11 @@ EFFECTS: dict[str, EffectSpec] = {
             "mechanism",
             (
                 ParamSpec(
-                    "compliance_mm_per_N", "mm/N", "nonlinear", 0.0, 0.06,
+                    "compliance_mm_per_N",
+                    "mm/N",
+                    "nonlinear",
+                    0.0,
+                    0.06,
                     grid=(0.0, 0.001, 0.002, 0.004, 0.007, 0.011, 0.017, 0.026, 0.04),
                 ),
             ),
@@ -191,7 +197,11 @@ EFFECTS: dict[str, EffectSpec] = {
             "tissue",
             (
                 ParamSpec(
-                    "offset_mm", "mm", "nonlinear", -0.4, 0.4,
+                    "offset_mm",
+                    "mm",
+                    "nonlinear",
+                    -0.4,
+                    0.4,
                     grid=tuple(np.round(np.linspace(-0.35, 0.35, 11), 3)),
                 ),
             ),
@@ -217,7 +227,11 @@ EFFECTS: dict[str, EffectSpec] = {
             "sensor",
             (
                 ParamSpec(
-                    "delay_s", "s", "nonlinear", 0.0, 0.15,
+                    "delay_s",
+                    "s",
+                    "nonlinear",
+                    0.0,
+                    0.15,
                     grid=(0.0, 0.004, 0.008, 0.014, 0.022, 0.032, 0.045, 0.065, 0.1),
                 ),
             ),
@@ -387,9 +401,7 @@ def validate_trial(
     if not math.isfinite(thick) or thick <= 0:
         raise TrialDataError(f"{side_src}: key 'thickness_mm' must be > 0, got {thick!r}")
     if thick < 0.05:
-        raise TrialDataError(
-            f"{side_src}: key 'thickness_mm' = {thick!r}: metres instead of mm?"
-        )
+        raise TrialDataError(f"{side_src}: key 'thickness_mm' = {thick!r}: metres instead of mm?")
     material = str(sidecar["material"])
     if surrogate is not None:
         if material not in surrogate.materials:
@@ -439,8 +451,7 @@ def load_trial(
         sidecar = json.loads(sp.read_text())
     except FileNotFoundError:
         raise TrialDataError(
-            f"{sp}: sidecar missing (a JSON object with thickness_mm and material beside "
-            f"{p.name})"
+            f"{sp}: sidecar missing (a JSON object with thickness_mm and material beside {p.name})"
         ) from None
     except (OSError, json.JSONDecodeError, UnicodeDecodeError) as e:
         raise TrialDataError(f"{sp}: cannot read sidecar JSON ({e})") from None
@@ -547,10 +558,7 @@ def _prepare(
     p.F0 = f0
     sig = p.noise_N if math.isfinite(p.noise_N) and p.noise_N > 0 else 0.01
     p.sigma = np.sqrt(
-        sig**2
-        + (slope * p.quantum_deg) ** 2 / 12.0
-        + (SURROGATE_REL_UNCERTAINTY * f0) ** 2
-        + 1e-8
+        sig**2 + (slope * p.quantum_deg) ** 2 / 12.0 + (SURROGATE_REL_UNCERTAINTY * f0) ** 2 + 1e-8
     )
     contact = fe > 1e-9
     g_c = _contact_gap(surrogate, trial.thickness_mm, trial.material)
@@ -622,9 +630,7 @@ def _compliant(
         dr = 1.0 + c * ks
         lo = np.where(r < 0, f, lo)
         hi = np.where(r > 0, f, hi)
-        done = (np.abs(r) <= 1e-10 * np.maximum(1.0, fs)) | (
-            hi - lo <= 1e-13 * np.maximum(1.0, hi)
-        )
+        done = (np.abs(r) <= 1e-10 * np.maximum(1.0, fs)) | (hi - lo <= 1e-13 * np.maximum(1.0, hi))
         if np.all(done):
             break
         fn = f - r / dr
@@ -834,9 +840,7 @@ def _fit(
     return _Fit(tuple(effects), tuple(x), coef, chi2)
 
 
-def _predict(
-    prep: _Prep, fit: _Fit, surrogate: Surrogate, chain: kin.ChainParams
-) -> FloatArray:
+def _predict(prep: _Prep, fit: _Fit, surrogate: Surrogate, chain: kin.ChainParams) -> FloatArray:
     f0, phi, tis = _evaluate(prep, fit.effects, fit.nl, surrogate, chain)
     return _combine(f0, phi, tis, fit.coef, _visco_index(fit.effects))
 
@@ -898,9 +902,11 @@ def _uncertainty(fold_params: list[dict[str, dict[str, float]]]) -> dict[str, di
         out[e] = {}
         for name in ps:
             vals = np.array([fp[e][name] for fp in fold_params])
-            out[e][name] = float(math.sqrt((k - 1) / k * np.sum((vals - vals.mean()) ** 2))) if (
-                k > 1
-            ) else float("nan")
+            out[e][name] = (
+                float(math.sqrt((k - 1) / k * np.sum((vals - vals.mean()) ** 2)))
+                if (k > 1)
+                else float("nan")
+            )
     return out
 
 
@@ -1216,8 +1222,9 @@ def _block_analysis(
         for (k, _), sp in zip(sens, _sensor_split([it for _, it in sens])):
             for b, r in sp.items():
                 parts[b][k] += r
-    ss = {b: float(sum(float(w_i @ (x * x)) for x, w_i in zip(v, weights)))
-          for b, v in parts.items()}
+    ss = {
+        b: float(sum(float(w_i @ (x * x)) for x, w_i in zip(v, weights))) for b, v in parts.items()
+    }
     sys_ss = {b: max(ss[b] - noise_ss[b], 0.0) for b in BLOCKS}
     tot = sum(sys_ss.values())
     if tot <= 0:
@@ -1401,10 +1408,7 @@ def diagnose(
         top = pairs[0]
         left = cv[best].chi2 - N
         gain = (cv[best].chi2 - cv[top].chi2) / left if left > 0 else 0.0
-        if (
-            gain >= PAIR_GAIN
-            and score(top) - score(best) >= PAIR_MIN_SHARE
-        ):
+        if gain >= PAIR_GAIN and score(top) - score(best) >= PAIR_MIN_SHARE:
             chosen = top
 
     # ---- verdict
@@ -1469,9 +1473,7 @@ def diagnose(
 
     def fold_mean(key: tuple[str, ...]) -> dict[str, dict[str, float]]:
         fps = cv[key].fold_params
-        return {
-            e: {k: float(np.mean([fp[e][k] for fp in fps])) for k in fps[0][e]} for e in key
-        }
+        return {e: {k: float(np.mean([fp[e][k] for fp in fps])) for k in fps[0][e]} for e in key}
 
     chosen_fit = _fit(preps, chosen, surrogate, chain)
 
@@ -1658,9 +1660,7 @@ class AugmentedModel:
         """
         prep = prepare_arrays(time_s, theta_deg, thickness_mm, material, self.chain)
         names = [e for e in _ORDER if e in self.effects]
-        nl = [
-            self.effects[e][p.name] - p.offset for e, p in _nl_params(names)
-        ]
+        nl = [self.effects[e][p.name] - p.offset for e, p in _nl_params(names)]
         coef = np.array([self.effects[e][p.name] - p.offset for e, p in _columns(names)])
         f0, phi, tis = _evaluate(prep, names, nl, surrogate, self.chain)
         return _combine(f0, phi, tis, coef, _visco_index(names))
@@ -1908,9 +1908,7 @@ def format_summary(report: dict[str, Any]) -> str:
     for k in PHASES:
         s = b["by_phase"][k]
         if s["n"]:
-            lines.append(
-                f"{k:<12}{s['rms_N']:9.3f}{s['bias_N']:+9.3f}{s['share']:8.2f}{s['n']:7d}"
-            )
+            lines.append(f"{k:<12}{s['rms_N']:9.3f}{s['bias_N']:+9.3f}{s['share']:8.2f}{s['n']:7d}")
     if b.get("by_block"):
         lines.append("")
         for k, s in b["by_block"].items():
@@ -1976,8 +1974,16 @@ def write_plots(diag: Diagnosis, out_dir: str | Path) -> list[Path]:
         for k in range(1, len(PHASES)):
             m = p.phase == k
             if np.any(m):
-                ax2.fill_between(p.t, 0, 1, where=m, color=f"C{k + 3}", alpha=0.15,
-                                 transform=ax2.get_xaxis_transform(), label=PHASES[k])
+                ax2.fill_between(
+                    p.t,
+                    0,
+                    1,
+                    where=m,
+                    color=f"C{k + 3}",
+                    alpha=0.15,
+                    transform=ax2.get_xaxis_transform(),
+                    label=PHASES[k],
+                )
         ax2.set_xlabel("time (s)")
         ax2.set_ylabel("residual (N)")
         ax2.legend(fontsize=6, ncol=3)

@@ -73,7 +73,7 @@ LIBRARY_EFFECTS = (
     "sensor_offset_gain",
     "latency",
 )
-"""Effects the diagnosis has a candidate for (same names as :data:`grasprom.gap.diagnosis.EFFECTS`)."""
+"""Effects the diagnosis has a candidate for (names of :data:`grasprom.gap.diagnosis.EFFECTS`)."""
 
 OUT_OF_LIBRARY_EFFECTS = ("motor_cogging",)
 """Effects the diagnosis has no candidate for."""

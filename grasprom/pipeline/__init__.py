@@ -7,7 +7,8 @@
    held-out FE directory exists (default ``fe_data/holdout``), its held-out error; writes
    ``surrogate.json``, ``figures/fe_sweep.png`` (FE curves) and ``figures/surrogate.png``
    (surrogate over the FE points).
-2. ``tune`` -- :func:`grasprom.control.tuning.tune` over every thickness x material of the surrogate;
+2. ``tune`` -- :func:`~grasprom.control.tuning.tune` over every thickness x material of the
+   surrogate;
    writes ``controller.json`` (tuned :class:`ControllerParams` at ``--thickness`` /
    ``--material``, report under ``"tuning"``), ``tuning.txt`` and the tuning figures
    (``stiffness_vs_theta.png``, ``zwidth.png``, ``bode_impedance.png``).
@@ -18,7 +19,8 @@
    With ``fast`` the simavr cycle count and the host error run are skipped; flash and RAM are
    still measured when avr-gcc is installed.
 5. ``cosim`` -- a grasp-hold-release through the FMI 2 FMU with fmpy: the handle (inertia and
-   viscous friction of :class:`grasprom.control.tuning.DeviceParams`, end stops) is squeezed by a hand
+   viscous friction of :class:`~grasprom.control.tuning.DeviceParams`, end stops) is squeezed by a
+   hand
    force profile and pushed back by the motor torque; the FMU's torque is compared with the
    Python reference controller replayed on the same angles.  Writes ``cosim.csv`` and
    ``figures/cosim.png``.
@@ -55,10 +57,10 @@ from typing import TYPE_CHECKING, Any, TextIO
 import numpy as np
 
 if TYPE_CHECKING:
-    from grasprom.export.arduino import ArduinoExport
     from grasprom.control.controller import ControllerParams
-    from grasprom.surrogate import Surrogate
     from grasprom.control.tuning import DeviceParams, HandParams, TuningResult
+    from grasprom.export.arduino import ArduinoExport
+    from grasprom.surrogate import Surrogate
 
 from grasprom.paths import DEFAULT_HOLDOUT_DIR, resolve_data_dir
 
@@ -306,8 +308,10 @@ def _stage_arduino(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) 
                 sz = measure_size(tables, Path(tmp))
             ard.flash_B, ard.ram_B = sz.flash_B, sz.ram_B
         else:
-            ard.notes.append("flash/RAM not measured: avr-gcc/avr-size not found "
-                             "(Debian: apt-get install gcc-avr avr-libc binutils-avr)")
+            ard.notes.append(
+                "flash/RAM not measured: avr-gcc/avr-size not found "
+                "(Debian: apt-get install gcc-avr avr-libc binutils-avr)"
+            )
     res.arduino = ard
     res.files["arduino"] = out / "arduino"
     (out / "arduino" / "budget.txt").write_text(ard.summary() + "\n")
@@ -392,7 +396,8 @@ def cosimulate(
     ``(J + J_h) theta'' = L3 (force_handle - F_hand) - (b + b_h) theta'``, integrated with
     semi-implicit Euler at
     ``substeps`` per controller step; the FMU is stepped at its sample time with the angle at
-    the communication point.  The Python :class:`~grasprom.control.controller.ImpedanceController` is
+    the communication point.  The Python
+    :class:`~grasprom.control.controller.ImpedanceController` is
     stepped on the same angles for comparison.
 
     Parameters
@@ -513,8 +518,12 @@ def plot_cosim(cs: CosimResult, params: ControllerParams, path: str | Path) -> P
     tw.plot(t, cs.col("torque_Nm"), "C3", lw=0.6, alpha=0.6)
     tw.set_ylabel("motor torque (N m)", color="C3")
     ax[2].semilogy(t, np.maximum(cs.col("force_jaw_N"), 1e-3), label="rendered jaw force")
-    ax[2].semilogy(t, np.maximum(cs.col("force_tissue_N"), 1e-3), ":",
-                   label="tissue at the handle's gap (surrogate, without the coupling)")
+    ax[2].semilogy(
+        t,
+        np.maximum(cs.col("force_tissue_N"), 1e-3),
+        ":",
+        label="tissue at the handle's gap (surrogate, without the coupling)",
+    )
     ax[2].set_ylim(bottom=1e-2)
     ax[2].set_ylabel("jaw force (N)")
     ax[2].set_xlabel("time (s)")
@@ -533,11 +542,16 @@ def plot_cosim(cs: CosimResult, params: ControllerParams, path: str | Path) -> P
 # ----------------------------------------------------------------------------------- report
 _FIGURES = (
     ("fe_sweep", "FE sweep: force vs jaw gap (full stroke, log axis; zoom on the walls meeting)"),
-    ("surrogate", "Surrogate (lines) over FE points (held-out cases when available): force, "
-                  "zoom on wall contact, stiffness"),
+    (
+        "surrogate",
+        "Surrogate (lines) over FE points (held-out cases when available): force, "
+        "zoom on wall contact, stiffness",
+    ),
     ("transmission", "Fg/Fi vs handle angle theta: derived chain and seed formula"),
-    ("stiffness", "Rendered and raw-tissue stiffness at the handle pivot vs theta, with the "
-                  "passive bound"),
+    (
+        "stiffness",
+        "Rendered and raw-tissue stiffness at the handle pivot vs theta, with the passive bound",
+    ),
     ("zwidth", "Z-width: passive (K, B) set and the operating points"),
     ("bode", "Rendered impedance at the stiffest point vs the ideal K/s + B"),
     ("cosim", "Grasp-hold-release co-simulated through the FMU (fmpy)"),
@@ -546,8 +560,10 @@ _FIGURES = (
 
 def _img(path: Path, alt: str) -> str:
     data = base64.b64encode(path.read_bytes()).decode("ascii")
-    return (f'<figure><img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
-            f"<figcaption>{html.escape(path.name)}: {html.escape(alt)}</figcaption></figure>")
+    return (
+        f'<figure><img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
+        f"<figcaption>{html.escape(path.name)}: {html.escape(alt)}</figcaption></figure>"
+    )
 
 
 def _table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
@@ -680,11 +696,14 @@ def write_report(res: BuildResult, opts: BuildOptions) -> Path:
         parts.append(f"<p class='fail'><b>Build failed at stage '{res.failed_stage}'</b>: "
                      f"{html.escape(str(res.error))}. Sections of later stages are missing."
                      "</p>")  # fmt: skip
-    parts.append("<h2>Stages</h2>" + _table(
-        ["stage", "wall time (s)"],
-        [[k, f"{v:.1f}"] for k, v in res.stage_times_s.items()]
-        + ([[res.failed_stage, "FAILED"]] if res.failed_stage else []),
-    ))
+    parts.append(
+        "<h2>Stages</h2>"
+        + _table(
+            ["stage", "wall time (s)"],
+            [[k, f"{v:.1f}"] for k, v in res.stage_times_s.items()]
+            + ([[res.failed_stage, "FAILED"]] if res.failed_stage else []),
+        )
+    )
     files = [[k, str(p.relative_to(out)) if p.is_relative_to(out) else str(p)]
              for k, p in res.files.items()]  # fmt: skip
     parts.append("<h2>Artefacts</h2>" + _table(["artefact", "path"], files))
@@ -711,8 +730,9 @@ def write_report(res: BuildResult, opts: BuildOptions) -> Path:
                      "force cap) where the FE stiffness is below the steep limit; gap: gap error "
                      "at equal force where steeper.</p>")  # fmt: skip
     if "transmission" in figs:
-        parts.append("<h2>Kinematic chain</h2>" + _img(figs["transmission"],
-                                                       dict(_FIGURES)["transmission"]))
+        parts.append(
+            "<h2>Kinematic chain</h2>" + _img(figs["transmission"], dict(_FIGURES)["transmission"])
+        )
     if res.tuning is not None:
         sm = res.tuning.summary
         c = sm["chosen"]
@@ -724,59 +744,83 @@ def write_report(res: BuildResult, opts: BuildOptions) -> Path:
                 f"rendered {html.escape(', '.join(a['rendered']) or 'none')}; measurement-only "
                 f"(not rendered) {html.escape(', '.join(a['measurement_only']) or 'none')}.</p>"
             )
-        parts.append(_table(
-            ["quantity", "value"],
-            [["coupling stiffness k_c (N/mm)", _fmt(c["coupling_stiffness_N_per_mm"])],
-             ["virtual damping B (N m s/rad)", _fmt(c["damping_Nms_per_rad"], ".4g")],
-             ["velocity cutoff (Hz)", _fmt(c["velocity_cutoff_Hz"])],
-             ["largest rendered stiffness (N m/rad)", _fmt(sm["max_rendered_K_Nm_per_rad"])],
-             ["passive stiffness bound (N m/rad)", _fmt(sm["passive_stiffness_Nm_per_rad"])],
-             ["passivity margin b / b_required", _fmt(sm["passivity_margin"])],
-             ["passive everywhere", str(sm["passive_everywhere"])],
-             ["closed loop with hand: max |pole|",
-              _fmt(sm["closed_loop_with_hand"]["max_pole_mag"], ".5f")]],
-        ))
+        parts.append(
+            _table(
+                ["quantity", "value"],
+                [
+                    ["coupling stiffness k_c (N/mm)", _fmt(c["coupling_stiffness_N_per_mm"])],
+                    ["virtual damping B (N m s/rad)", _fmt(c["damping_Nms_per_rad"], ".4g")],
+                    ["velocity cutoff (Hz)", _fmt(c["velocity_cutoff_Hz"])],
+                    ["largest rendered stiffness (N m/rad)", _fmt(sm["max_rendered_K_Nm_per_rad"])],
+                    ["passive stiffness bound (N m/rad)", _fmt(sm["passive_stiffness_Nm_per_rad"])],
+                    ["passivity margin b / b_required", _fmt(sm["passivity_margin"])],
+                    ["passive everywhere", str(sm["passive_everywhere"])],
+                    [
+                        "closed loop with hand: max |pole|",
+                        _fmt(sm["closed_loop_with_hand"]["max_pole_mag"], ".5f"),
+                    ],
+                ],
+            )
+        )
         parts.append(f"<pre>{html.escape(res.tuning.report())}</pre>")
         for key in ("zwidth", "stiffness", "bode"):
             if key in figs:
                 parts.append(_img(figs[key], dict(_FIGURES)[key]))
     if "fmu2" in res.files:
-        parts.append("<h2>FMU</h2>" + _table(
-            ["file", "FMI", "size (KiB)"],
-            [[res.files[k].name, v, f"{res.files[k].stat().st_size / 1024:.0f}"]
-             for k, v in (("fmu2", "2.0"), ("fmu3", "3.0")) if k in res.files],
-        ))
+        parts.append(
+            "<h2>FMU</h2>"
+            + _table(
+                ["file", "FMI", "size (KiB)"],
+                [
+                    [res.files[k].name, v, f"{res.files[k].stat().st_size / 1024:.0f}"]
+                    for k, v in (("fmu2", "2.0"), ("fmu3", "3.0"))
+                    if k in res.files
+                ],
+            )
+        )
     if res.cosim is not None:
         cs = res.cosim
         parts.append("<h2>Co-simulated grasp</h2>")
-        parts.append(f"<p>{len(cs.data)} steps at {1 / res.params.sample_time_s:g} Hz; min handle "
-                     f"angle {cs.col('theta_deg').min():.2f} deg, max jaw force "
-                     f"{cs.col('force_jaw_N').max():.2f} N, max motor torque "
-                     f"{cs.col('torque_Nm').max():.3f} N m; FMU vs Python reference torque: "
-                     f"max |diff| {cs.max_torque_diff_Nm:.2e} N m; {cs.wall_s:.1f} s.</p>")
+        parts.append(
+            f"<p>{len(cs.data)} steps at {1 / res.params.sample_time_s:g} Hz; min handle "
+            f"angle {cs.col('theta_deg').min():.2f} deg, max jaw force "
+            f"{cs.col('force_jaw_N').max():.2f} N, max motor torque "
+            f"{cs.col('torque_Nm').max():.3f} N m; FMU vs Python reference torque: "
+            f"max |diff| {cs.max_torque_diff_Nm:.2e} N m; {cs.wall_s:.1f} s.</p>"
+        )
         if "cosim" in figs:
             parts.append(_img(figs["cosim"], dict(_FIGURES)["cosim"]))
     if res.arduino is not None:
         from grasprom.export.arduino import CYCLE_BUDGET, ERROR_BUDGET, FLASH_BUDGET_B, RAM_BUDGET_B
 
         a = res.arduino
-        parts.append("<h2>Arduino budget (ATmega328P)</h2>" + _table(
-            ["figure", "measured", "budget"],
-            [["flash tables + core (B)", _fmt(a.flash_B, "d"), FLASH_BUDGET_B],
-             ["RAM static + step stack (B)", _fmt(a.ram_B, "d"), RAM_BUDGET_B],
-             ["cycles per step, max", _fmt(a.cycles_max, "d"), CYCLE_BUDGET],
-             ["handle-force error (% FS)", _fmt(a.error_handle_pct_fs, ".3f"),
-              f"{100 * ERROR_BUDGET:g}"],
-             ["jaw-force error (% of jaw FS)", _fmt(a.error_jaw_pct_fs, ".3f"), ""],
-             ["tables (B)", a.table_bytes, ""],
-             ["grid nodes", ", ".join(f"{k} {v}" for k, v in a.grid_nodes.items()), ""]],
-        ))
+        parts.append(
+            "<h2>Arduino budget (ATmega328P)</h2>"
+            + _table(
+                ["figure", "measured", "budget"],
+                [
+                    ["flash tables + core (B)", _fmt(a.flash_B, "d"), FLASH_BUDGET_B],
+                    ["RAM static + step stack (B)", _fmt(a.ram_B, "d"), RAM_BUDGET_B],
+                    ["cycles per step, max", _fmt(a.cycles_max, "d"), CYCLE_BUDGET],
+                    [
+                        "handle-force error (% FS)",
+                        _fmt(a.error_handle_pct_fs, ".3f"),
+                        f"{100 * ERROR_BUDGET:g}",
+                    ],
+                    ["jaw-force error (% of jaw FS)", _fmt(a.error_jaw_pct_fs, ".3f"), ""],
+                    ["tables (B)", a.table_bytes, ""],
+                    ["grid nodes", ", ".join(f"{k} {v}" for k, v in a.grid_nodes.items()), ""],
+                ],
+            )
+        )
         if a.notes:
-            parts.append("<ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in a.notes)
-                         + "</ul>")
+            parts.append("<ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in a.notes) + "</ul>")
     if res.notes:
-        parts.append("<h2>Notes</h2><ul>" + "".join(f"<li>{html.escape(n)}</li>"
-                                                    for n in res.notes) + "</ul>")
+        parts.append(
+            "<h2>Notes</h2><ul>"
+            + "".join(f"<li>{html.escape(n)}</li>" for n in res.notes)
+            + "</ul>"
+        )
     parts.append("<h2>Provenance</h2><pre>" + html.escape(json.dumps(prov, indent=2)) + "</pre>")
     parts.append("</body></html>")
     path = out / "report.html"
@@ -930,10 +974,11 @@ def summary(res: BuildResult) -> str:
                      f"cycles {_fmt(a.cycles_max, 'd')}, handle-force error "
                      f"{_fmt(a.error_handle_pct_fs, '.3f')} % FS")  # fmt: skip
     if res.cosim is not None:
-        lines.append(f"  co-simulation: max jaw force {res.cosim.col('force_jaw_N').max():.2f} N,"
-                     f" FMU vs Python torque {res.cosim.max_torque_diff_Nm:.1e} N m")
+        lines.append(
+            f"  co-simulation: max jaw force {res.cosim.col('force_jaw_N').max():.2f} N,"
+            f" FMU vs Python torque {res.cosim.max_torque_diff_Nm:.1e} N m"
+        )
     for key in ("surrogate", "controller", "fmu2", "fmu3", "arduino", "report"):
         if key in res.files:
             lines.append(f"  {key:10s} {res.files[key]}")
     return "\n".join(lines)
-

@@ -494,7 +494,7 @@ def fe_dir_hash(directory: str | os.PathLike[str]) -> str:
 # --------------------------------------------------------------------------- the surrogate
 
 
-class _MaterialTable:
+class SplineTable:
     """Evaluation tables of one material (numpy arrays and pure-Python lists)."""
 
     def __init__(self, curves: Sequence[Curve], diameter_mm: float) -> None:
@@ -780,7 +780,7 @@ class Surrogate:
             ts = [c.thickness_mm for c in cs]
             if len(set(ts)) != len(ts):
                 raise ValueError(f"material {m!r}: duplicate thickness in {ts}")
-        self._tables = {m: _MaterialTable(cs, self.diameter_mm) for m, cs in self._curves.items()}
+        self._tables = {m: SplineTable(cs, self.diameter_mm) for m, cs in self._curves.items()}
 
     # ---------------------------------------------------------------- construction
     @classmethod
@@ -897,23 +897,30 @@ class Surrogate:
 
     def thickness_range(self, material: str) -> tuple[float, float]:
         """Swept thickness range ``(min, max)`` of a material, in mm."""
-        tab = self._table(material)
+        tab = self.table(material)
         return tab.tmin, tab.tmax
 
     def thicknesses(self, material: str) -> tuple[float, ...]:
         """Grid thicknesses of a material, in mm."""
-        return tuple(self._table(material).t)
+        return tuple(self.table(material).t)
 
     def curves(self, material: str) -> tuple[Curve, ...]:
         """Reduced curves of a material, sorted by thickness."""
-        self._table(material)
+        self.table(material)
         return self._curves[material]
 
     def node_count(self) -> int:
         """Total number of gap nodes over all curves."""
         return sum(len(c.gap_mm) for cs in self._curves.values() for c in cs)
 
-    def _table(self, material: str) -> _MaterialTable:
+    def table(self, material: str) -> SplineTable:
+        """The evaluation table of one material (Hermite intervals per curve; for code generation).
+
+        Raises
+        ------
+        ValueError
+            If the surrogate has no such material.
+        """
         try:
             return self._tables[material]
         except KeyError:
@@ -948,7 +955,7 @@ class Surrogate:
         ValueError
             Unknown material, non-finite gap, or thickness outside the swept range.
         """
-        f, _, flag = self._table(material).evaluate(
+        f, _, flag = self.table(material).evaluate(
             gap_mm, thickness_mm, self.params.scheme, False, return_flag
         )
         return (f, flag) if return_flag else f
@@ -965,7 +972,7 @@ class Surrogate:
         flag : numpy.ndarray of bool
             Only if ``return_flag``.
         """
-        _, d, flag = self._table(material).evaluate(
+        _, d, flag = self.table(material).evaluate(
             gap_mm, thickness_mm, self.params.scheme, True, return_flag
         )
         k = -d
@@ -998,18 +1005,18 @@ class Surrogate:
         tuple of (float, float, bool)
             ``(force_N, stiffness_N_per_mm, out_of_range)``.
         """
-        f, d, flag = self._table(material).scalar(
+        f, d, flag = self.table(material).scalar(
             float(gap_mm), float(thickness_mm), self.params.scheme
         )
         return f, -d, flag
 
     def force_scalar(self, gap_mm: float, thickness_mm: float, material: str) -> float:
         """Force in N at one point, pure Python (see :meth:`evaluate_scalar`)."""
-        return self._table(material).scalar(gap_mm, thickness_mm, self.params.scheme)[0]
+        return self.table(material).scalar(gap_mm, thickness_mm, self.params.scheme)[0]
 
     def stiffness_scalar(self, gap_mm: float, thickness_mm: float, material: str) -> float:
         """Stiffness ``-dF/dgap`` in N/mm at one point, pure Python (:meth:`evaluate_scalar`)."""
-        return -self._table(material).scalar(gap_mm, thickness_mm, self.params.scheme)[1]
+        return -self.table(material).scalar(gap_mm, thickness_mm, self.params.scheme)[1]
 
     # ---------------------------------------------------------------- accuracy
     def check(self, fe_dir: str | os.PathLike[str], schemes: Sequence[str] = SCHEMES) -> dict:
@@ -1616,7 +1623,9 @@ def plot_surrogate(
     return out
 
 
-def load_surrogate(surrogate: str | os.PathLike[str] | None, fe: str | os.PathLike[str] | None) -> Surrogate:
+def load_surrogate(
+    surrogate: str | os.PathLike[str] | None, fe: str | os.PathLike[str] | None
+) -> Surrogate:
     """Load a surrogate file, or build one from an FE sweep (default: the shipped sweep).
 
     Parameters
