@@ -22,7 +22,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from grasprom.control.controller import ControllerParams
+from grasprom.control import ControllerParams
 from grasprom.export import arduino as ar
 from grasprom.surrogate import Surrogate
 

@@ -42,7 +42,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from grasprom.gap.synth import LIBRARY_EFFECTS, OUT_OF_LIBRARY_EFFECTS  # noqa: E402
+from grasprom.gap import LIBRARY_EFFECTS, OUT_OF_LIBRARY_EFFECTS  # noqa: E402
 
 _SURROGATE = None
 
@@ -89,7 +89,7 @@ def run_case(case: dict, n_trials: int = 4, gap_channel: bool = False) -> dict:
     """
     from grasprom.chain import kinematics as kin
     from grasprom.gap import diagnosis as dg
-    from grasprom.gap.synth import synth_case
+    from grasprom.gap import synth_case
 
     s = _surrogate()
     chain = kin.ChainParams()
@@ -133,7 +133,7 @@ def _pred_key(r: dict) -> str:
 
 def truth_block(r: dict) -> str | None:
     """Block of the chain of a single-effect case's truth effect (None for other cases)."""
-    from grasprom.gap.diagnosis import EFFECTS
+    from grasprom.gap import EFFECTS
 
     if r["kind"] != "single":
         return None
@@ -141,7 +141,7 @@ def truth_block(r: dict) -> str | None:
 
 
 def _truth_blocks(r: dict) -> set[str]:
-    from grasprom.gap.diagnosis import EFFECTS
+    from grasprom.gap import EFFECTS
 
     return {EFFECTS[e].block for e in r["effects"]}
 
@@ -249,7 +249,7 @@ def print_report(results: list[dict]) -> None:
             )
     conf = block_confusion(results)
     if conf:
-        from grasprom.gap.diagnosis import BLOCKS
+        from grasprom.gap import BLOCKS
 
         bcols = list(BLOCKS) + ["unknown"]
         print(

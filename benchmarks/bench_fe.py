@@ -16,7 +16,7 @@ import cProfile
 import pstats
 import time
 
-from grasprom.fe.model2d import CaseSpec, MeshSpec, run_case
+from grasprom.fe import CaseSpec, MeshSpec, run_case
 
 
 def _share(stats: pstats.Stats, name: str, total: float) -> float:

@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from grasprom.control.controller import ControllerParams, grasp_trajectory
-from grasprom.export.fmu import OUTPUT_COLUMNS, build_driver, export_fmu
+from grasprom.control import ControllerParams, grasp_trajectory
+from grasprom.export import OUTPUT_COLUMNS, build_driver, export_fmu
 from grasprom.surrogate import load_surrogate
 
 

@@ -16,8 +16,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from grasprom.fe.datafiles import load_sweep
-from grasprom.fe.sweep import build_grid, run_sweep
+from grasprom.fe import build_grid, load_sweep, run_sweep
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -14,7 +14,7 @@ import sys
 
 import numpy as np
 
-from grasprom.fe.datafiles import load_sweep
+from grasprom.fe import load_sweep
 
 
 def main(argv: list[str] | None = None) -> int:

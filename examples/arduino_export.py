@@ -19,8 +19,8 @@ import dataclasses
 import warnings
 from pathlib import Path
 
-from grasprom.control.controller import ControllerParams, load_params
-from grasprom.export.arduino import export_arduino
+from grasprom.control import ControllerParams, load_params
+from grasprom.export import export_arduino
 from grasprom.surrogate import Surrogate
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -34,9 +34,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from grasprom.chain import kinematics as kin  # noqa: E402
-from grasprom.control.controller import ControllerParams, simulate  # noqa: E402
+from grasprom.control import ControllerParams, simulate  # noqa: E402
+from grasprom.gap import SYNTH_EFFECTS, synth_case, write_case  # noqa: E402
 from grasprom.gap import diagnosis as dg  # noqa: E402
-from grasprom.gap.synth import SYNTH_EFFECTS, synth_case, write_case  # noqa: E402
 from grasprom.surrogate import Surrogate  # noqa: E402
 
 

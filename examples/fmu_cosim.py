@@ -27,8 +27,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from grasprom.control.controller import ControllerParams  # noqa: E402
-from grasprom.export.fmu import export_fmu  # noqa: E402
+from grasprom.control import ControllerParams  # noqa: E402
+from grasprom.export import export_fmu  # noqa: E402
 from grasprom.pipeline import hand_force_N  # noqa: E402
 from grasprom.surrogate import load_surrogate  # noqa: E402
 

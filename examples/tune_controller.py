@@ -15,8 +15,7 @@ import warnings
 from dataclasses import replace
 from pathlib import Path
 
-from grasprom.control.controller import ControllerParams
-from grasprom.control.tuning import DeviceParams, tune, write_outputs
+from grasprom.control import ControllerParams, DeviceParams, tune, write_outputs
 from grasprom.surrogate import Surrogate
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -37,7 +37,7 @@ from grasprom.paths import DEFAULT_HOLDOUT_DIR, DEFAULT_SWEEP_DIR, resolve_data_
 
 
 def _build_parser() -> argparse.ArgumentParser:
-    from grasprom.fe.sweep import KNOWN_MATERIALS, spec_defaults
+    from grasprom.fe import KNOWN_MATERIALS, spec_defaults
 
     d = spec_defaults()
     p = argparse.ArgumentParser(
@@ -204,10 +204,10 @@ def _build_parser() -> argparse.ArgumentParser:
 def _delegated(name: str):
     """Entry point of a subcommand that parses its own arguments."""
     if name == "diagnose":
-        from grasprom.gap.diagnosis import main_diagnose
+        from grasprom.gap import main_diagnose
 
         return main_diagnose
-    from grasprom.gap.synth import main_synth
+    from grasprom.gap import main_synth
 
     return main_synth
 
@@ -252,7 +252,7 @@ def _augment_params(cmd: str, path: str, params, sur) -> tuple[object, dict]:
     file and its sha256."""
     import hashlib
 
-    from grasprom.gap.diagnosis import controller_params_from_augmented, load_augmented
+    from grasprom.gap import controller_params_from_augmented, load_augmented
 
     model = load_augmented(path)
     params, info = controller_params_from_augmented(params, model, sur)
@@ -287,7 +287,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
     import pandas as pd
 
-    from grasprom.control.controller import ControllerParams, load_params, simulate
+    from grasprom.control import ControllerParams, load_params, simulate
 
     try:
         params = load_params(args.controller) if args.controller else ControllerParams()
@@ -309,7 +309,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             params, aug = _augment_params("simulate", args.augmented, params, sur)
         out = simulate(traj, params, sur, source=args.trajectory)
         if aug and aug["measurement_only"]:
-            from grasprom.gap.diagnosis import measured_handle_force_N
+            from grasprom.gap import measured_handle_force_N
 
             out["force_handle_measured_N"] = measured_handle_force_N(
                 out["time_s"].to_numpy(), out["force_handle_N"].to_numpy(), aug["measurement"]
@@ -340,8 +340,7 @@ def _error(cmd: str, msg: object) -> int:
 
 
 def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
-    from grasprom.fe.datafiles import CorruptCaseError
-    from grasprom.fe.sweep import SweepInputError, build_grid, default_runner, run_sweep
+    from grasprom.fe import CorruptCaseError, SweepInputError, build_grid, default_runner, run_sweep
 
     try:
         specs = build_grid(
@@ -379,8 +378,7 @@ def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from grasprom.fe.datafiles import CorruptCaseError
-    from grasprom.fe.report import make_report
+    from grasprom.fe import CorruptCaseError, make_report
 
     directory = resolve_data_dir(args.directory)
     try:
@@ -395,7 +393,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
 def _cmd_surrogate(args: argparse.Namespace) -> int:
     import warnings
 
-    from grasprom.fe.datafiles import CorruptCaseError
+    from grasprom.fe import CorruptCaseError
     from grasprom.surrogate import (
         BuildParams,
         Surrogate,
@@ -481,8 +479,7 @@ def _cmd_tune(args: argparse.Namespace) -> int:
     import math
     import warnings
 
-    from grasprom.control.controller import ControllerParams, load_params
-    from grasprom.control.tuning import tune, write_outputs
+    from grasprom.control import ControllerParams, load_params, tune, write_outputs
     from grasprom.surrogate import SurrogateFileError
 
     try:
@@ -567,7 +564,7 @@ def _add_augmented_export(p) -> None:
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
-    from grasprom.control.controller import ControllerParams, load_params
+    from grasprom.control import ControllerParams, load_params
 
     try:
         params = load_params(args.params) if args.params else ControllerParams()
@@ -578,12 +575,12 @@ def _cmd_export(args: argparse.Namespace) -> int:
             params, _ = _augment_params(f"export {args.export_command}", args.augmented, params,
                                         sur)  # fmt: skip
         if args.export_command == "arduino":
-            from grasprom.export.arduino import export_main
+            from grasprom.export import export_main
 
             return export_main(
                 args.out, surrogate=sur, params=params, tol=args.tol, fixed_point=args.fixed_point
             )
-        from grasprom.export.fmu import export_fmu
+        from grasprom.export import export_fmu
 
         out = export_fmu(args.out, params, sur, fmi_version=args.fmi)
     except (OSError, ValueError, RuntimeError) as exc:
@@ -648,7 +645,7 @@ def _add_build_parser(sub) -> None:
 def _cmd_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
     import math
 
-    from grasprom.fe.materials import MATERIAL_NAMES
+    from grasprom.fe import MATERIAL_NAMES
     from grasprom.pipeline import BuildOptions, StageError, run_build, summary
 
     if args.material not in MATERIAL_NAMES:

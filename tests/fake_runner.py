@@ -11,7 +11,7 @@ import time
 import numpy as np
 import pandas as pd
 
-from grasprom.fe.model2d import CaseResult, CaseSpec
+from grasprom.fe import CaseResult, CaseSpec
 
 FAIL_THICKNESS_MM = 1.0
 """Thickness at which :func:`failing_runner` raises."""

@@ -75,7 +75,7 @@ from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 from grasprom.chain import kinematics as kin
-from grasprom.fe.materials import MATERIAL_NAMES
+from grasprom.fe import MATERIAL_NAMES
 from grasprom.surrogate import Surrogate
 
 NEWTON_ITERATIONS = 3

@@ -20,8 +20,8 @@ import tempfile
 from pathlib import Path
 
 from grasprom.chain import kinematics as kin
-from grasprom.control.controller import ControllerParams, StepOutput
-from grasprom.fe.materials import MATERIAL_NAMES
+from grasprom.control import ControllerParams, StepOutput
+from grasprom.fe import MATERIAL_NAMES
 from grasprom.paths import c_file
 from grasprom.surrogate import Surrogate
 

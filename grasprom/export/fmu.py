@@ -41,9 +41,9 @@ from xml.sax.saxutils import quoteattr
 
 from grasprom import __version__
 from grasprom.chain import kinematics as kin
-from grasprom.control.controller import ControllerParams
+from grasprom.control import ControllerParams
 from grasprom.export.ccore import CORE_SOURCES, tables_source
-from grasprom.fe.materials import MATERIAL_NAMES
+from grasprom.fe import MATERIAL_NAMES
 from grasprom.paths import c_file
 from grasprom.surrogate import Surrogate
 

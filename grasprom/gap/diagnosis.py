@@ -52,7 +52,7 @@ from scipy.optimize import lsq_linear, minimize_scalar
 from scipy.signal import lfilter
 
 from grasprom.chain import kinematics as kin
-from grasprom.control.controller import MAX_PRONY_TERMS, ControllerParams
+from grasprom.control import MAX_PRONY_TERMS, ControllerParams
 from grasprom.surrogate import Surrogate
 
 FloatArray = NDArray[np.float64]
@@ -2052,7 +2052,7 @@ def main_diagnose(argv: Sequence[str] | None = None) -> int:
 
     try:
         if args.controller:
-            from grasprom.control.controller import load_params
+            from grasprom.control import load_params
 
             chain = load_params(args.controller).chain_params
         else:

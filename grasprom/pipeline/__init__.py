@@ -57,9 +57,8 @@ from typing import TYPE_CHECKING, Any, TextIO
 import numpy as np
 
 if TYPE_CHECKING:
-    from grasprom.control.controller import ControllerParams
-    from grasprom.control.tuning import DeviceParams, HandParams, TuningResult
-    from grasprom.export.arduino import ArduinoExport
+    from grasprom.control import ControllerParams, DeviceParams, HandParams, TuningResult
+    from grasprom.export import ArduinoExport
     from grasprom.surrogate import Surrogate
 
 from grasprom.paths import DEFAULT_HOLDOUT_DIR, resolve_data_dir
@@ -204,7 +203,7 @@ def sha256_path(path: str | Path) -> str:
 def _versions() -> dict[str, str | None]:
     import importlib
 
-    from grasprom.fe.datafiles import package_versions
+    from grasprom.fe import package_versions
 
     out = dict(package_versions())
     for mod, name in (("matplotlib", "matplotlib"), ("control", "control"), ("fmpy", "fmpy")):
@@ -231,7 +230,7 @@ def _tool_version(tool: str) -> str | None:
 
 # ----------------------------------------------------------------------------------- stages
 def _stage_surrogate(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) -> None:
-    from grasprom.fe.report import plot_sweep
+    from grasprom.fe import plot_sweep
     from grasprom.surrogate import BuildParams, Surrogate, plot_surrogate
 
     fe = res.fe_dir
@@ -259,12 +258,11 @@ def _stage_surrogate(opts: BuildOptions, res: BuildResult, out: Path, figs: Path
 
 
 def _stage_tune(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) -> None:
-    from grasprom.control.controller import ControllerParams, save_params
-    from grasprom.control.tuning import plot_tuning, tune
+    from grasprom.control import ControllerParams, plot_tuning, save_params, tune
 
     base = ControllerParams(thickness_mm=opts.thickness_mm, material=opts.material)
     if opts.augmented is not None:
-        from grasprom.gap.diagnosis import controller_params_from_augmented, load_augmented
+        from grasprom.gap import controller_params_from_augmented, load_augmented
 
         base, info = controller_params_from_augmented(
             base, load_augmented(opts.augmented), res.surrogate
@@ -286,7 +284,7 @@ def _stage_tune(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) -> 
 
 
 def _stage_fmu(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) -> None:
-    from grasprom.export.fmu import export_fmu
+    from grasprom.export import export_fmu
 
     res.files["fmu2"] = export_fmu(out / FMU2_NAME, res.params, res.surrogate, fmi_version=2)
     res.files["fmu3"] = export_fmu(out / FMU3_NAME, res.params, res.surrogate, fmi_version=3)
@@ -295,7 +293,7 @@ def _stage_fmu(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) -> N
 def _stage_arduino(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) -> None:
     import tempfile
 
-    from grasprom.export.arduino import build_tables, export_arduino, measure_size
+    from grasprom.export import build_tables, export_arduino, measure_size
 
     ard = export_arduino(
         out / "arduino", surrogate=res.surrogate, params=res.params, measure=not opts.fast
@@ -318,7 +316,7 @@ def _stage_arduino(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) 
 
 
 def _stage_cosim(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) -> None:
-    from grasprom.control.tuning import DeviceParams, HandParams
+    from grasprom.control import DeviceParams, HandParams
 
     dev = res.tuning.device if res.tuning is not None else DeviceParams()
     hand = res.tuning.hand if res.tuning is not None else HandParams()
@@ -333,7 +331,7 @@ def _stage_cosim(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) ->
 
 def _stage_report(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) -> None:
     from grasprom.chain import kinematics as kin
-    from grasprom.control.controller import ControllerParams
+    from grasprom.control import ControllerParams
 
     chain = (res.params or ControllerParams()).chain_params
     res.figures["transmission"] = kin.plot_transmission(chain, figs / "transmission.png")
@@ -427,7 +425,7 @@ def cosimulate(
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
 
-    from grasprom.control.controller import ImpedanceController
+    from grasprom.control import ImpedanceController
 
     t_wall = time.perf_counter()
     ramp, hold, release, rest = (0.4, 0.6, 0.3, 0.5) if fast else (1.0, 2.0, 0.5, 1.0)
@@ -617,7 +615,7 @@ def provenance(res: BuildResult, opts: BuildOptions) -> dict[str, Any]:
     -------
     dict
     """
-    from grasprom.fe.datafiles import git_revision
+    from grasprom.fe import git_revision
     from grasprom.surrogate import fe_dir_hash
 
     def dir_hash(d: Path | None) -> str | None:
@@ -791,7 +789,7 @@ def write_report(res: BuildResult, opts: BuildOptions) -> Path:
         if "cosim" in figs:
             parts.append(_img(figs["cosim"], dict(_FIGURES)["cosim"]))
     if res.arduino is not None:
-        from grasprom.export.arduino import CYCLE_BUDGET, ERROR_BUDGET, FLASH_BUDGET_B, RAM_BUDGET_B
+        from grasprom.export import CYCLE_BUDGET, ERROR_BUDGET, FLASH_BUDGET_B, RAM_BUDGET_B
 
         a = res.arduino
         parts.append(

@@ -1120,7 +1120,7 @@ class Surrogate:
         -------
         pathlib.Path
         """
-        from grasprom.fe.datafiles import atomic_write_bytes
+        from grasprom.fe import atomic_write_bytes
 
         p = Path(path)
         text = json.dumps(self.to_dict(), indent=1, allow_nan=False, default=_json_default)

@@ -53,8 +53,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from grasprom.chain import kinematics as kin
-from grasprom.control.controller import ControllerParams
-from grasprom.fe.materials import MATERIAL_NAMES
+from grasprom.control import ControllerParams
+from grasprom.fe import MATERIAL_NAMES
 from grasprom.paths import c_file
 from grasprom.surrogate import Surrogate
 
@@ -1024,7 +1024,7 @@ def run_runtime_avr(
     surrogate curves go to flash (``GC_TABLE`` = PROGMEM).  Outputs are compared with
     :class:`grasprom.control.controller.ImpedanceController` (double) on the same encoder counts.
     """
-    from grasprom.control.controller import ImpedanceController
+    from grasprom.control import ImpedanceController
     from grasprom.export.ccore import tables_source
 
     _need("avr-gcc", "gcc-avr avr-libc")

@@ -16,7 +16,7 @@ from grasprom.control import tuning as tn
 from grasprom.control.controller import ControllerParams, ImpedanceController, load_params
 from grasprom.surrogate import Surrogate
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 T = 1e-3
 
 

@@ -26,7 +26,7 @@ from fmpy.validation import validate_fmu
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from grasprom.control.controller import (
+from grasprom.control import (
     ControllerParams,
     ImpedanceController,
     grasp_trajectory,
@@ -616,7 +616,7 @@ def test_fuzz_inputs_and_parameters_never_crash(fmus, slaves, version):
 def test_cli_export_fmu(tmp_path, capsys):
     _require(shutil.which("gcc") is not None, "gcc")
     from grasprom.cli import main
-    from grasprom.control.controller import save_params
+    from grasprom.control import save_params
 
     ctl = tmp_path / "controller.json"
     save_params(ControllerParams(thickness_mm=1.2, material="nh", damping_Nms_per_rad=0.01), ctl)

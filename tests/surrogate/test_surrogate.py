@@ -24,7 +24,7 @@ from grasprom.surrogate import (
     read_fe_cases,
 )
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 DEFAULT = ROOT / "fe_data" / "default"
 HOLDOUT = ROOT / "fe_data" / "holdout"
 MATERIALS = ("mr", "nh", "le")

@@ -13,7 +13,7 @@ from scipy.integrate import quad, trapezoid
 
 from grasprom.chain import kinematics as kin
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 P = kin.ChainParams()
 LO, HI = kin.theta_range_deg(P)
 THETA = np.linspace(LO, HI, 441)

@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from grasprom.chain import kinematics as kin
-from grasprom.control.controller import ControllerParams, simulate
+from grasprom.control import ControllerParams, simulate
 from grasprom.gap import diagnosis as dg
 from grasprom.gap.synth import main_synth, synth_case, write_case
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from grasprom.control.controller import ControllerParams, ImpedanceController
+from grasprom.control import ControllerParams, ImpedanceController
 from grasprom.export import arduino as ar
 
 CI = os.environ.get("CI") == "true"

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 CI = os.environ.get("CI") == "true"
 FIGURES = ("fe_sweep.png", "surrogate.png", "transmission.png", "stiffness_vs_theta.png",
            "zwidth.png", "bode_impedance.png", "cosim.png")  # fmt: skip
@@ -57,7 +57,7 @@ def test_progress_names_every_stage(built):
 
 
 def test_surrogate_and_controller_load(built):
-    from grasprom.control.controller import ImpedanceController, load_params
+    from grasprom.control import ImpedanceController, load_params
     from grasprom.surrogate import Surrogate
 
     out, _ = built
@@ -77,7 +77,7 @@ def test_fmu_validates_and_simulates(built, name):
     from fmpy import read_model_description, simulate_fmu
     from fmpy.validation import validate_fmu
 
-    from grasprom.control.controller import load_params, simulate
+    from grasprom.control import load_params, simulate
     from grasprom.surrogate import Surrogate
 
     out, _ = built

@@ -9,7 +9,7 @@ import shutil
 import numpy as np
 import pytest
 
-from grasprom.control.controller import ControllerParams, ImpedanceController, grasp_trajectory
+from grasprom.control import ControllerParams, ImpedanceController, grasp_trajectory
 from grasprom.export.ccore import CCore, c_params, tables_source
 
 

@@ -14,7 +14,7 @@ import pytest
 
 from grasprom.chain import kinematics as kin
 from grasprom.cli import main
-from grasprom.control.controller import (
+from grasprom.control import (
     ControllerParams,
     ImpedanceController,
     grasp_trajectory,
@@ -307,7 +307,7 @@ def test_exports_load_the_augmented_model(surrogate, tmp_path, capsys):
     from fmpy import read_model_description
     from fmpy import simulate_fmu as fmpy_simulate
 
-    from grasprom.export.fmu import start_values
+    from grasprom.export import start_values
 
     sur = surrogate.save(tmp_path / "sur.json")
     aug = {
