@@ -1,0 +1,306 @@
+"""Stage 5, the co-simulated grasp: a hand squeezes the handle, whose motor is driven by the
+FMI 2 FMU (fmpy), with the Python reference controller replayed on the same angles.
+
+:func:`hand_force_N` is the hand's force profile, :func:`cosimulate` the run and
+:func:`plot_cosim` its figure.
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from grasprom.pipeline.result import CosimResult
+
+if TYPE_CHECKING:
+    from grasprom.control import ControllerParams, DeviceParams, HandParams
+    from grasprom.surrogate import Surrogate
+
+COLUMNS = ("time_s", "theta_deg", "torque_Nm", "force_tissue_N", "force_jaw_N",
+           "force_handle_N", "hand_N")  # fmt: skip
+"""Columns of :attr:`CosimResult.data` written by :func:`cosimulate`."""
+
+FMU_OUTPUTS = ("torque", "force_tissue", "force_jaw", "force_handle")
+"""FMU output variables read at every communication point (N m, N, N, N)."""
+
+
+def hand_force_N(t: float, ramp: float, hold: float, release: float, peak: float) -> float:
+    """Hand force at the grip, N: cosine ramp up, hold, cosine release, then zero.
+
+    Parameters
+    ----------
+    t : float
+        Time, s.
+    ramp, hold, release : float
+        Durations of the three phases, s.
+    peak : float
+        Hold force, N.
+
+    Returns
+    -------
+    float
+    """
+    if t < ramp:
+        return peak * 0.5 * (1 - math.cos(math.pi * t / ramp))
+    if t < ramp + hold:
+        return peak
+    if t < ramp + hold + release:
+        return peak * 0.5 * (1 + math.cos(math.pi * (t - ramp - hold) / release))
+    return 0.0
+
+
+@dataclass(frozen=True)
+class Handle:
+    """Rigid handle about its pivot, with the hand's mass and damping reflected to it.
+
+    Attributes
+    ----------
+    grip_radius_m : float
+        Grip radius ``L3`` of the chain, m.
+    theta_closed_rad, theta_open_rad : float
+        End stops, rad.
+    inertia_kg_m2 : float
+        Handle plus hand inertia about the pivot, kg m^2.
+    damping_Nms_per_rad : float
+        Handle plus hand viscous damping about the pivot, N m s/rad.
+    """
+
+    grip_radius_m: float
+    theta_closed_rad: float
+    theta_open_rad: float
+    inertia_kg_m2: float
+    damping_Nms_per_rad: float
+
+    @classmethod
+    def from_params(
+        cls, params: ControllerParams, device: DeviceParams, hand: HandParams | None
+    ) -> Handle:
+        """Handle of the chain of ``params`` with ``device`` and, if given, the ``hand``.
+
+        Parameters
+        ----------
+        params : ControllerParams
+            Its chain gives the grip radius (mm) and the end stops (deg).
+        device : DeviceParams
+            Handle inertia (kg m^2) and damping (N m s/rad).
+        hand : HandParams or None
+            Finger mass (kg) and damping (N s/m) at the grip, reflected to the pivot.
+
+        Returns
+        -------
+        Handle
+        """
+        chain = params.chain_params
+        J, b = device.inertia_kg_m2, device.damping_Nms_per_rad
+        if hand is not None:
+            J_h, b_h, _k_h = hand.at_pivot(chain.L3_mm)
+            J, b = J + J_h, b + b_h
+        return cls(
+            grip_radius_m=chain.L3_mm * 1e-3,
+            theta_closed_rad=math.radians(chain.theta_closed_deg),
+            theta_open_rad=math.radians(chain.theta_open_deg),
+            inertia_kg_m2=J,
+            damping_Nms_per_rad=b,
+        )
+
+    def advance(
+        self, theta: float, omega: float, f_handle: float, f_hand: float, dt: float, substeps: int
+    ) -> tuple[float, float]:
+        """``substeps`` semi-implicit Euler steps of ``dt`` s with the forces held.
+
+        Parameters
+        ----------
+        theta, omega : float
+            Handle angle (rad) and angular velocity (rad/s) at the start.
+        f_handle : float
+            Rendered handle force pushing the handle open, N.
+        f_hand : float
+            Hand force squeezing it, N.
+        dt : float
+            Integration step, s.
+        substeps : int
+            Number of steps.
+
+        Returns
+        -------
+        theta, omega : float
+            At the end, rad and rad/s (stopped at an end stop).
+        """
+        L3, J, b = self.grip_radius_m, self.inertia_kg_m2, self.damping_Nms_per_rad
+        th_lo, th_hi = self.theta_closed_rad, self.theta_open_rad
+        for _ in range(substeps):
+            omega += (L3 * (f_handle - f_hand) - b * omega) / J * dt
+            theta += omega * dt
+            if theta < th_lo or theta > th_hi:  # end stops
+                theta = min(max(theta, th_lo), th_hi)
+                omega = 0.0
+        return theta, omega
+
+
+def grasp_profile(fast: bool) -> tuple[float, float, float, float]:
+    """Durations (ramp, hold, release, rest) of the grasp, s."""
+    return (0.4, 0.6, 0.3, 0.5) if fast else (1.0, 2.0, 0.5, 1.0)
+
+
+def cosimulate(
+    fmu_path: str | Path,
+    params: ControllerParams,
+    surrogate: Surrogate,
+    device: DeviceParams,
+    hand: HandParams | None = None,
+    *,
+    fast: bool = False,
+    peak_hand_N: float = 3.0,
+    substeps: int = 10,
+) -> CosimResult:
+    """Grasp-hold-release through an FMI 2 co-simulation FMU with fmpy.
+
+    The handle is a rotational inertia ``J`` about its pivot with viscous friction ``b``
+    (``device``) and end stops at the chain's range, squeezed by the hand (force ``F_hand(t)``
+    at the grip radius ``L3``, plus the finger's mass and damping from ``hand``, reflected to the
+    pivot: ``J_h = m L3^2``, ``b_h = c L3^2``) and pushed open by the FMU's rendered handle force:
+    ``(J + J_h) theta'' = L3 (force_handle - F_hand) - (b + b_h) theta'``, integrated with
+    semi-implicit Euler at
+    ``substeps`` per controller step; the FMU is stepped at its sample time with the angle at
+    the communication point.  The Python
+    :class:`~grasprom.control.controller.ImpedanceController` is
+    stepped on the same angles for comparison.
+
+    Parameters
+    ----------
+    fmu_path : str or Path
+        FMI 2.0 FMU of :func:`grasprom.export.fmu.export_fmu`.
+    params : ControllerParams
+        Parameters the FMU was exported with (sample time, chain, operating point).
+    surrogate : Surrogate
+        Tissue table of the Python reference.
+    device : DeviceParams
+        Handle inertia (kg m^2) and damping (N m s/rad).
+    hand : HandParams, optional
+        Finger mass (kg) and damping (N s/m) at the grip; default none (a pure force source).
+    fast : bool
+        Shorter profile (ramp 0.4 s, hold 0.6 s, release 0.3 s, rest 0.5 s instead of
+        1 / 2 / 0.5 / 1 s).
+    peak_hand_N : float
+        Hold force of the hand at the grip, N.
+    substeps : int
+        Device integration steps per controller step.
+
+    Returns
+    -------
+    CosimResult
+    """
+    from grasprom.control import ImpedanceController
+
+    t_wall = time.perf_counter()
+    ramp, hold, release, rest = grasp_profile(fast)
+    T = params.sample_time_s
+    n = int(round((ramp + hold + release + rest) / T))
+    handle = Handle.from_params(params, device, hand)
+    fmu, vr, unzip = _open_fmu2(fmu_path)
+    ref = ImpedanceController(params, surrogate)
+    out_vr = [vr[k] for k in FMU_OUTPUTS]
+    rec = np.zeros((n, 7))
+    diff = 0.0
+    try:
+        _start(fmu)
+        theta, omega = handle.theta_open_rad, 0.0
+        dt = T / substeps
+        for k in range(n):
+            t = k * T
+            fmu.setReal([vr["theta"]], [theta])
+            fmu.doStep(t, T)
+            torque, f_tissue, f_jaw, f_handle = fmu.getReal(out_vr)
+            diff = max(diff, abs(torque - ref.step(theta).torque_Nm))
+            f_hand = hand_force_N(t, ramp, hold, release, peak_hand_N)
+            theta, omega = handle.advance(theta, omega, f_handle, f_hand, dt, substeps)
+            rec[k] = (t + T, math.degrees(theta), torque, f_tissue, f_jaw, f_handle, f_hand)
+        fmu.terminate()
+    finally:
+        fmu.freeInstance()
+        shutil.rmtree(unzip, ignore_errors=True)
+    return CosimResult(rec, COLUMNS, diff, time.perf_counter() - t_wall)
+
+
+def _open_fmu2(fmu_path: str | Path) -> tuple[Any, dict[str, int], str]:
+    """Unzip an FMI 2 FMU: its slave (not instantiated), value references by name, the folder."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    md = read_model_description(str(fmu_path))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    unzip = extract(str(fmu_path))
+    fmu = FMU2Slave(
+        guid=md.guid,
+        unzipDirectory=unzip,
+        modelIdentifier=md.coSimulation.modelIdentifier,
+        instanceName="build",
+    )
+    return fmu, vr, unzip
+
+
+def _start(fmu: Any) -> None:
+    """Instantiate and initialise an FMI 2 slave at t = 0."""
+    fmu.instantiate()
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+
+
+def plot_cosim(cs: CosimResult, params: ControllerParams, path: str | Path) -> Path:
+    """Handle angle, forces and motor torque of a co-simulation (PNG).
+
+    Parameters
+    ----------
+    cs : CosimResult
+    params : ControllerParams
+        For the title (material, thickness).
+    path : str or Path
+        PNG to write.
+
+    Returns
+    -------
+    Path
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    t = cs.col("time_s")
+    fig = Figure(figsize=(7.0, 7.0))
+    FigureCanvasAgg(fig)
+    ax = fig.subplots(3, 1, sharex=True)
+    ax[0].plot(t, cs.col("theta_deg"))
+    ax[0].set_ylabel("handle angle (deg)")
+    ax[1].plot(t, cs.col("force_handle_N"), label="rendered handle force")
+    ax[1].plot(t, cs.col("hand_N"), "k--", lw=0.8, label="hand force")
+    ax[1].set_ylabel("force at the grip (N)")
+    ax[1].legend(fontsize=7)
+    tw = ax[1].twinx()
+    tw.plot(t, cs.col("torque_Nm"), "C3", lw=0.6, alpha=0.6)
+    tw.set_ylabel("motor torque (N m)", color="C3")
+    ax[2].semilogy(t, np.maximum(cs.col("force_jaw_N"), 1e-3), label="rendered jaw force")
+    ax[2].semilogy(
+        t,
+        np.maximum(cs.col("force_tissue_N"), 1e-3),
+        ":",
+        label="tissue at the handle's gap (surrogate, without the coupling)",
+    )
+    ax[2].set_ylim(bottom=1e-2)
+    ax[2].set_ylabel("jaw force (N)")
+    ax[2].set_xlabel("time (s)")
+    ax[2].legend(fontsize=7)
+    for a in ax:
+        a.grid(alpha=0.3)
+    fig.suptitle(f"FMU co-simulation (FMI 2.0, fmpy): grasp - hold - release, "
+                 f"{params.material} {params.thickness_mm:g} mm")  # fmt: skip
+    fig.tight_layout()
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=100)
+    return out

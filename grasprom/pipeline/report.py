@@ -1,0 +1,380 @@
+"""The build's report: ``report.html`` (self-contained, figures embedded as base64 PNG),
+``build.json`` (provenance and headline results) and the console :func:`summary`.
+
+:func:`write_report` assembles the HTML from one section per stage; each ``_*_section``
+returns the section's HTML parts (empty when its stage did not run).
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from grasprom.pipeline.buildinfo import provenance
+from grasprom.pipeline.options import BuildOptions
+from grasprom.pipeline.result import BuildResult, results
+
+if TYPE_CHECKING:
+    from grasprom.control import TuningResult
+    from grasprom.export import ArduinoExport
+    from grasprom.pipeline.result import CosimResult
+
+FIGURES = (
+    ("fe_sweep", "FE sweep: force vs jaw gap (full stroke, log axis; zoom on the walls meeting)"),
+    (
+        "surrogate",
+        "Surrogate (lines) over FE points (held-out cases when available): force, "
+        "zoom on wall contact, stiffness",
+    ),
+    ("transmission", "Fg/Fi vs handle angle theta: derived chain and seed formula"),
+    (
+        "stiffness",
+        "Rendered and raw-tissue stiffness at the handle pivot vs theta, with the passive bound",
+    ),
+    ("zwidth", "Z-width: passive (K, B) set and the operating points"),
+    ("bode", "Rendered impedance at the stiffest point vs the ideal K/s + B"),
+    ("cosim", "Grasp-hold-release co-simulated through the FMU (fmpy)"),
+)
+"""Figure key -> caption of the figures the report embeds, in report order."""
+
+_CAPTIONS = dict(FIGURES)
+
+_STYLE = (
+    "<title>grasprom build report</title><style>body{font-family:sans-serif;"
+    "max-width:1100px;margin:auto}table{border-collapse:collapse;margin:0.5em 0}"
+    "td,th{border:1px solid #bbb;padding:2px 6px;text-align:right}"
+    "img{max-width:100%}pre{background:#f4f4f4;padding:6px;overflow-x:auto}"
+    ".fail{color:#b00}</style></head><body>"
+)
+
+_ERROR_HEADER = ["scheme", "range", "material", "F rms %FS", "F max %FS", "gap rms mm",
+                 "gap max mm"]  # fmt: skip
+
+
+# ----------------------------------------------------------------------------------- HTML bits
+def _img(path: Path, alt: str) -> str:
+    """``<figure>`` with the PNG at ``path`` embedded as base64 and captioned ``alt``."""
+    data = base64.b64encode(path.read_bytes()).decode("ascii")
+    return (
+        f'<figure><img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
+        f"<figcaption>{html.escape(path.name)}: {html.escape(alt)}</figcaption></figure>"
+    )
+
+
+def _figures(figs: dict[str, Path], keys: Sequence[str]) -> list[str]:
+    """Embedded figures of ``keys`` that exist in ``figs``, in that order."""
+    return [_img(figs[key], _CAPTIONS[key]) for key in keys if key in figs]
+
+
+def _table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
+    """HTML table (cells escaped)."""
+    th = "".join(f"<th>{html.escape(str(h))}</th>" for h in header)
+    body = "".join(
+        "<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>" for r in rows
+    )
+    return f"<table><tr>{th}</tr>{body}</table>"
+
+
+def _list(items: Sequence[str]) -> str:
+    """HTML bullet list (items escaped)."""
+    return "<ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in items) + "</ul>"
+
+
+def _fmt(v: Any, spec: str = ".3g") -> str:
+    """``v`` formatted with ``spec``; ``n/a`` for None, ``str`` for non-finite floats."""
+    if v is None:
+        return "n/a"
+    if isinstance(v, float) and not math.isfinite(v):
+        return str(v)
+    return format(v, spec)
+
+
+def error_rows(fig: dict[str, Any]) -> list[list[str]]:
+    """Rows (scheme, range, material, F rms %, F max %, gap rms mm, gap max mm) of error figures.
+
+    Parameters
+    ----------
+    fig : dict
+        Output of :meth:`Surrogate.check` or :func:`grasprom.surrogate.leave_one_out`.
+
+    Returns
+    -------
+    list of list of str
+    """
+    rows = []
+    for sc, fg in fig.get("schemes", {}).items():
+        for rng in ("haptic", "full"):
+            for mat in sorted(fg.get(rng, {}), key=lambda k: (k == "all", k)):
+                r = fg[rng][mat]
+                rows.append([sc, rng, mat, _fmt(r["force_rms_pct"], ".3f"),
+                             _fmt(r["force_max_pct"], ".3f"), _fmt(r["gap_rms_mm"], ".4f"),
+                             _fmt(r["gap_max_mm"], ".4f")])  # fmt: skip
+    return rows
+
+
+# ----------------------------------------------------------------------------------- sections
+def _head_section(res: BuildResult, opts: BuildOptions) -> list[str]:
+    """Document head, title line and, for a failed build, the failed stage."""
+    from grasprom import __version__
+
+    parts = [
+        "<!DOCTYPE html><html><head><meta charset='utf-8'>",
+        _STYLE,
+        f"<h1>grasprom build report</h1><p>grasprom {html.escape(__version__)}, "
+        f"{html.escape(res.started)}; operating point {html.escape(opts.material)} "
+        f"{opts.thickness_mm:g} mm{' (--fast)' if opts.fast else ''}.</p>",
+    ]
+    if res.failed_stage:
+        parts.append(f"<p class='fail'><b>Build failed at stage '{res.failed_stage}'</b>: "
+                     f"{html.escape(str(res.error))}. Sections of later stages are missing."
+                     "</p>")  # fmt: skip
+    return parts
+
+
+def _stages_section(res: BuildResult) -> list[str]:
+    """Wall time per stage (s) and the failed stage."""
+    rows = [[k, f"{v:.1f}"] for k, v in res.stage_times_s.items()]
+    if res.failed_stage:
+        rows.append([res.failed_stage, "FAILED"])
+    return ["<h2>Stages</h2>" + _table(["stage", "wall time (s)"], rows)]
+
+
+def _artefacts_section(res: BuildResult) -> list[str]:
+    """Artefacts written, relative to the output folder."""
+    out = res.out_dir
+    files = [[k, str(p.relative_to(out)) if p.is_relative_to(out) else str(p)]
+             for k, p in res.files.items()]  # fmt: skip
+    return ["<h2>Artefacts</h2>" + _table(["artefact", "path"], files)]
+
+
+def _surrogate_section(res: BuildResult) -> list[str]:
+    """FE data, surrogate figures and its held-out and leave-one-out errors."""
+    s = res.surrogate
+    if s is None:
+        return []
+    parts = ["<h2>FE data and surrogate</h2>"]
+    parts.append(f"<p>FE sweep {html.escape(str(res.fe_dir))}: materials "
+                 f"{', '.join(s.materials)}, {s.node_count()} surrogate nodes, scheme "
+                 f"{s.scheme}.</p>")  # fmt: skip
+    parts += _figures(res.figures, ("fe_sweep", "surrogate"))
+    if "holdout" in s.errors:
+        parts.append(f"<h3>Held-out error ({html.escape(str(res.holdout_dir))})</h3>")
+        parts.append(_table(_ERROR_HEADER, error_rows(s.errors["holdout"])))
+    else:
+        parts.append("<p>No held-out FE directory: only the leave-one-out error.</p>")
+    parts.append("<h3>Leave-one-thickness-out error</h3>")
+    parts.append(_table(_ERROR_HEADER, error_rows(s.errors.get("loo", {}))))
+    parts.append("<p>F: force error at equal gap, % of full scale (haptic: 20 N, full: the "
+                 "force cap) where the FE stiffness is below the steep limit; gap: gap error "
+                 "at equal force where steeper.</p>")  # fmt: skip
+    return parts
+
+
+def _chain_section(res: BuildResult) -> list[str]:
+    """The transmission figure."""
+    if "transmission" not in res.figures:
+        return []
+    return [
+        "<h2>Kinematic chain</h2>" + _img(res.figures["transmission"], _CAPTIONS["transmission"])
+    ]
+
+
+def _tuning_section(res: BuildResult) -> list[str]:
+    """Augmented model used, chosen controller parameters, tuning report and figures."""
+    if res.tuning is None:
+        return []
+    parts = ["<h2>Controller tuning</h2>"]
+    if res.augmentation is not None:
+        a = res.augmentation
+        parts.append(
+            f"<p>Augmented model {html.escape(a['file'])} (sha256 {a['sha256'][:12]}): "
+            f"rendered {html.escape(', '.join(a['rendered']) or 'none')}; measurement-only "
+            f"(not rendered) {html.escape(', '.join(a['measurement_only']) or 'none')}.</p>"
+        )
+    parts.append(_table(["quantity", "value"], _tuning_rows(res.tuning)))
+    parts.append(f"<pre>{html.escape(res.tuning.report())}</pre>")
+    parts += _figures(res.figures, ("zwidth", "stiffness", "bode"))
+    return parts
+
+
+def _tuning_rows(tuning: TuningResult) -> list[list[str]]:
+    """(quantity, value) rows of the chosen controller and its passivity figures."""
+    sm = tuning.summary
+    c = sm["chosen"]
+    return [
+        ["coupling stiffness k_c (N/mm)", _fmt(c["coupling_stiffness_N_per_mm"])],
+        ["virtual damping B (N m s/rad)", _fmt(c["damping_Nms_per_rad"], ".4g")],
+        ["velocity cutoff (Hz)", _fmt(c["velocity_cutoff_Hz"])],
+        ["largest rendered stiffness (N m/rad)", _fmt(sm["max_rendered_K_Nm_per_rad"])],
+        ["passive stiffness bound (N m/rad)", _fmt(sm["passive_stiffness_Nm_per_rad"])],
+        ["passivity margin b / b_required", _fmt(sm["passivity_margin"])],
+        ["passive everywhere", str(sm["passive_everywhere"])],
+        [
+            "closed loop with hand: max |pole|",
+            _fmt(sm["closed_loop_with_hand"]["max_pole_mag"], ".5f"),
+        ],
+    ]
+
+
+def _fmu_section(res: BuildResult) -> list[str]:
+    """FMU files, FMI versions and sizes (KiB)."""
+    if "fmu2" not in res.files:
+        return []
+    rows = [
+        [res.files[k].name, v, f"{res.files[k].stat().st_size / 1024:.0f}"]
+        for k, v in (("fmu2", "2.0"), ("fmu3", "3.0"))
+        if k in res.files
+    ]
+    return ["<h2>FMU</h2>" + _table(["file", "FMI", "size (KiB)"], rows)]
+
+
+def _cosim_section(res: BuildResult) -> list[str]:
+    """Headline figures and the figure of the co-simulated grasp."""
+    cs: CosimResult | None = res.cosim
+    if cs is None:
+        return []
+    parts = ["<h2>Co-simulated grasp</h2>"]
+    parts.append(
+        f"<p>{len(cs.data)} steps at {1 / res.params.sample_time_s:g} Hz; min handle "
+        f"angle {cs.col('theta_deg').min():.2f} deg, max jaw force "
+        f"{cs.col('force_jaw_N').max():.2f} N, max motor torque "
+        f"{cs.col('torque_Nm').max():.3f} N m; FMU vs Python reference torque: "
+        f"max |diff| {cs.max_torque_diff_Nm:.2e} N m; {cs.wall_s:.1f} s.</p>"
+    )
+    parts += _figures(res.figures, ("cosim",))
+    return parts
+
+
+def _arduino_section(res: BuildResult) -> list[str]:
+    """Arduino budget: measured flash, RAM, cycles and errors against the budgets; notes."""
+    a = res.arduino
+    if a is None:
+        return []
+    parts = [
+        "<h2>Arduino budget (ATmega328P)</h2>"
+        + _table(["figure", "measured", "budget"], _arduino_rows(a))
+    ]
+    if a.notes:
+        parts.append(_list(a.notes))
+    return parts
+
+
+def _arduino_rows(a: ArduinoExport) -> list[list[Any]]:
+    """(figure, measured, budget) rows of an Arduino export."""
+    from grasprom.export import CYCLE_BUDGET, ERROR_BUDGET, FLASH_BUDGET_B, RAM_BUDGET_B
+
+    return [
+        ["flash tables + core (B)", _fmt(a.flash_B, "d"), FLASH_BUDGET_B],
+        ["RAM static + step stack (B)", _fmt(a.ram_B, "d"), RAM_BUDGET_B],
+        ["cycles per step, max", _fmt(a.cycles_max, "d"), CYCLE_BUDGET],
+        [
+            "handle-force error (% FS)",
+            _fmt(a.error_handle_pct_fs, ".3f"),
+            f"{100 * ERROR_BUDGET:g}",
+        ],
+        ["jaw-force error (% of jaw FS)", _fmt(a.error_jaw_pct_fs, ".3f"), ""],
+        ["tables (B)", a.table_bytes, ""],
+        ["grid nodes", ", ".join(f"{k} {v}" for k, v in a.grid_nodes.items()), ""],
+    ]
+
+
+def _notes_section(res: BuildResult) -> list[str]:
+    """Notes of the build (warnings of the stages)."""
+    if not res.notes:
+        return []
+    return ["<h2>Notes</h2>" + _list(res.notes)]
+
+
+# ----------------------------------------------------------------------------------- writers
+def write_report(res: BuildResult, opts: BuildOptions) -> Path:
+    """Write ``report.html`` (figures embedded as base64 PNG) and ``build.json``.
+
+    Works on a partial build: sections of the stages that did not run are left out and the
+    failed stage is named at the top.
+
+    Parameters
+    ----------
+    res : BuildResult
+    opts : BuildOptions
+
+    Returns
+    -------
+    Path
+        The HTML report.
+    """
+    prov = provenance(res, opts)
+    parts = [
+        *_head_section(res, opts),
+        *_stages_section(res),
+        *_artefacts_section(res),
+        *_surrogate_section(res),
+        *_chain_section(res),
+        *_tuning_section(res),
+        *_fmu_section(res),
+        *_cosim_section(res),
+        *_arduino_section(res),
+        *_notes_section(res),
+        "<h2>Provenance</h2><pre>" + html.escape(json.dumps(prov, indent=2)) + "</pre>",
+        "</body></html>",
+    ]
+    path = res.out_dir / "report.html"
+    path.write_text("\n".join(parts))
+    res.files["report"] = path
+    write_build_json(res, prov)
+    return path
+
+
+def write_build_json(res: BuildResult, prov: dict[str, Any]) -> Path:
+    """Write ``build.json``: provenance, headline :func:`results`, figure and file paths.
+
+    Parameters
+    ----------
+    res : BuildResult
+    prov : dict
+        Output of :func:`~grasprom.pipeline.buildinfo.provenance`.
+
+    Returns
+    -------
+    Path
+    """
+    out = res.out_dir
+    path = out / "build.json"
+    path.write_text(json.dumps(
+        {"format": "grasprom-build", "format_version": 1, "provenance": prov,
+         "results": results(res),
+         "figures": {k: str(p.relative_to(out)) for k, p in res.figures.items()},
+         "files": {k: str(p.relative_to(out)) for k, p in res.files.items()}},
+        indent=2, default=str))  # fmt: skip
+    res.files["build_json"] = path
+    return path
+
+
+def summary(res: BuildResult) -> str:
+    """One paragraph on a finished build: artefacts and headline figures."""
+    lines = [f"grasprom build: {res.total_s:.1f} s -> {res.out_dir}"]
+    if res.tuning is not None:
+        sm = res.tuning.summary
+        lines.append(f"  controller: k_c = {sm['chosen']['coupling_stiffness_N_per_mm']:g} N/mm, "
+                     f"passivity margin {sm['passivity_margin']:.3g}")  # fmt: skip
+    if res.augmentation is not None:
+        lines.append(f"  augmented model {res.augmentation['file']}: rendered "
+                     f"{', '.join(res.augmentation['rendered']) or 'none'}")  # fmt: skip
+    if res.arduino is not None:
+        a = res.arduino
+        lines.append(f"  arduino: flash {_fmt(a.flash_B, 'd')} B, RAM {_fmt(a.ram_B, 'd')} B, "
+                     f"cycles {_fmt(a.cycles_max, 'd')}, handle-force error "
+                     f"{_fmt(a.error_handle_pct_fs, '.3f')} % FS")  # fmt: skip
+    if res.cosim is not None:
+        lines.append(
+            f"  co-simulation: max jaw force {res.cosim.col('force_jaw_N').max():.2f} N,"
+            f" FMU vs Python torque {res.cosim.max_torque_diff_Nm:.1e} N m"
+        )
+    for key in ("surrogate", "controller", "fmu2", "fmu3", "arduino", "report"):
+        if key in res.files:
+            lines.append(f"  {key:10s} {res.files[key]}")
+    return "\n".join(lines)

@@ -1,0 +1,147 @@
+"""Result objects of the main job: :class:`BuildResult` (also the state of a partial build),
+:class:`CosimResult` (the co-simulated grasp) and :func:`results`, their headline figures."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from grasprom.control import ControllerParams, TuningResult
+    from grasprom.export import ArduinoExport
+    from grasprom.surrogate import Surrogate
+
+
+@dataclass
+class CosimResult:
+    """Grasp-hold-release co-simulation through the FMU (see
+    :func:`~grasprom.pipeline.cosimulate`).
+
+    Attributes
+    ----------
+    data : numpy.ndarray
+        One row per controller step: time (s), handle angle (deg), motor torque (N m), tissue
+        force (N), jaw force (N), handle force (N), hand force (N).
+    columns : tuple of str
+        Column names of ``data``.
+    max_torque_diff_Nm : float
+        Largest |FMU torque - Python reference torque| over the run, N m.
+    wall_s : float
+        Wall time of the co-simulation, s.
+    """
+
+    data: np.ndarray
+    columns: tuple[str, ...]
+    max_torque_diff_Nm: float
+    wall_s: float
+
+    def col(self, name: str) -> np.ndarray:
+        """Column ``name`` of :attr:`data`."""
+        return self.data[:, self.columns.index(name)]
+
+
+@dataclass
+class BuildResult:
+    """What :func:`~grasprom.pipeline.run_build` produced (also the state of a partial build).
+
+    Attributes
+    ----------
+    out_dir : Path
+    files : dict of str to Path
+        Artefacts written, by key (``surrogate``, ``controller``, ``fmu2``, ``fmu3``,
+        ``arduino``, ``cosim_csv``, ``report``, ``build_json``).
+    figures : dict of str to Path
+        PNG figures, by key.
+    stage_times_s : dict of str to float
+        Wall time per finished stage, s.
+    failed_stage : str or None
+        Name of the stage that failed, if any.
+    error : str or None
+        Its message.
+    """
+
+    out_dir: Path
+    files: dict[str, Path] = field(default_factory=dict)
+    figures: dict[str, Path] = field(default_factory=dict)
+    stage_times_s: dict[str, float] = field(default_factory=dict)
+    failed_stage: str | None = None
+    error: str | None = None
+    surrogate: Surrogate | None = None
+    tuning: TuningResult | None = None
+    params: ControllerParams | None = None
+    augmentation: dict[str, Any] | None = None  # mapping info of --augmented
+    arduino: ArduinoExport | None = None
+    cosim: CosimResult | None = None
+    notes: list[str] = field(default_factory=list)
+    fe_dir: Path | None = None
+    holdout_dir: Path | None = None
+    started: str = ""
+    total_s: float = 0.0
+
+
+def results(res: BuildResult) -> dict[str, Any]:
+    """Headline figures of a (possibly partial) build, JSON-ready (units in the key names).
+
+    Parameters
+    ----------
+    res : BuildResult
+
+    Returns
+    -------
+    dict
+        ``surrogate`` (held-out / leave-one-out haptic errors, aligned scheme), ``tuning``
+        (chosen parameters, passivity margin), ``fmu`` (file sizes), ``arduino`` (budget
+        figures), ``cosim`` (peaks, FMU vs Python torque difference).
+    """
+    out: dict[str, Any] = {}
+    if res.surrogate is not None:
+        out["surrogate"] = _surrogate_figures(res.surrogate)
+    if res.tuning is not None:
+        out["tuning"] = _tuning_figures(res.tuning)
+    fm = {k: res.files[k].stat().st_size for k in ("fmu2", "fmu3") if k in res.files}
+    if fm:
+        out["fmu"] = {f"{k}_bytes": v for k, v in fm.items()}
+    if res.arduino is not None:
+        out["arduino"] = _arduino_figures(res.arduino)
+    if res.cosim is not None:
+        out["cosim"] = _cosim_figures(res.cosim)
+    return out
+
+
+def _surrogate_figures(s: Surrogate) -> dict[str, Any]:
+    """Node count, scheme, FE hash and haptic errors (held-out, leave-one-out, %FS / mm)."""
+    err = {}
+    for key in ("holdout", "loo"):
+        fig = s.errors.get(key, {}).get("schemes", {}).get(s.scheme)
+        if fig:
+            err[key] = fig["haptic"]["all"]
+    return {"nodes": s.node_count(), "scheme": s.scheme, "fe_hash": s.fe_hash,
+            "haptic_error": err}  # fmt: skip
+
+
+def _tuning_figures(tuning: TuningResult) -> dict[str, Any]:
+    """Chosen controller parameters and the passivity figures of a tuning."""
+    sm = tuning.summary
+    return {**sm["chosen"], "passivity_margin": sm["passivity_margin"],
+            "passive_everywhere": sm["passive_everywhere"],
+            "max_rendered_K_Nm_per_rad": sm["max_rendered_K_Nm_per_rad"],
+            "passive_stiffness_Nm_per_rad": sm["passive_stiffness_Nm_per_rad"]}  # fmt: skip
+
+
+def _arduino_figures(a: ArduinoExport) -> dict[str, Any]:
+    """Flash and RAM (B), cycles per step, errors (% FS) and notes of an Arduino export."""
+    return {"flash_B": a.flash_B, "ram_B": a.ram_B, "cycles_max": a.cycles_max,
+            "cycles_mean": a.cycles_mean, "error_handle_pct_fs": a.error_handle_pct_fs,
+            "error_jaw_pct_fs": a.error_jaw_pct_fs, "table_bytes": a.table_bytes,
+            "within_budget": a.within_budget(), "notes": list(a.notes)}  # fmt: skip
+
+
+def _cosim_figures(cs: CosimResult) -> dict[str, Any]:
+    """Steps, min handle angle (deg), max jaw force (N), max torque and FMU-Python diff (N m)."""
+    return {"steps": len(cs.data), "min_theta_deg": float(cs.col("theta_deg").min()),
+            "max_force_jaw_N": float(cs.col("force_jaw_N").max()),
+            "max_torque_Nm": float(cs.col("torque_Nm").max()),
+            "max_torque_diff_vs_python_Nm": cs.max_torque_diff_Nm}  # fmt: skip

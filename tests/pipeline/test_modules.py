@@ -1,0 +1,45 @@
+"""The main job's modules on their own (no build): the public API, the hand profile, the
+handle's integration and the result objects of an empty build."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+
+def test_public_api_resolves():
+    import grasprom.pipeline as p
+
+    assert [n for n in p.__all__ if not hasattr(p, n)] == []
+    assert p.STAGES == ("surrogate", "tune", "fmu", "arduino", "cosim", "report")
+    from grasprom.pipeline.stages import STAGE_FUNCS
+
+    assert tuple(STAGE_FUNCS) == p.STAGES
+
+
+def test_hand_force_profile():
+    from grasprom.pipeline import hand_force_N
+
+    assert hand_force_N(0.0, 1.0, 2.0, 0.5, 3.0) == 0.0
+    assert hand_force_N(0.5, 1.0, 2.0, 0.5, 3.0) == pytest.approx(1.5)
+    assert hand_force_N(2.0, 1.0, 2.0, 0.5, 3.0) == 3.0
+    assert hand_force_N(3.25, 1.0, 2.0, 0.5, 3.0) == pytest.approx(1.5)
+    assert hand_force_N(4.0, 1.0, 2.0, 0.5, 3.0) == 0.0
+
+
+def test_handle_stops_at_the_closed_end():
+    from grasprom.pipeline.cosim import Handle
+
+    h = Handle(0.05, math.radians(1.0), math.radians(22.0), 1e-4, 1e-3)
+    theta, omega = h.advance(math.radians(2.0), 0.0, 0.0, 50.0, 1e-3, 100)
+    assert theta == h.theta_closed_rad and omega == 0.0
+
+
+def test_empty_build_result():
+    from grasprom.pipeline import BuildResult, results, summary
+
+    res = BuildResult(out_dir=Path("out"))
+    assert results(res) == {}
+    assert summary(res).startswith("grasprom build: 0.0 s -> out")
