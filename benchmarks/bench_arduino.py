@@ -62,7 +62,9 @@ def main(argv: list[str]) -> None:
         print(row(sur, params, 0.01, False, Path(tmp) / "fl"), flush=True)
         t = ar.build_tables(sur, params, 0.01)
         counts = ar.sweep_counts(t, 9)
-        cases = [ar.TestCase(m, th, counts) for m, th in (("mr", 1400), ("nh", 2000), ("le", 850))]
+        cases = [
+            ar.VectorCase(m, th, counts) for m, th in (("mr", 1400), ("nh", 2000), ("le", 850))
+        ]
         rt = ar.run_runtime_avr(sur, params, cases, Path(tmp) / "rt")
         print(
             f"  run-time float (the FMU's step on the AVR): flash {rt.flash_B} B, cycles max "

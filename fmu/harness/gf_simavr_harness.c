@@ -3,7 +3,7 @@
  *
  * Usage: gf_simavr_harness FIRMWARE.elf MCU FREQ_HZ OUT.bin CYCLES.txt
  *
- * The firmware (grasprom.arduino, gf_avr_test_main.c) writes result bytes to GPIOR0 and step
+ * The firmware (grasprom.export.arduino, gf_avr_test_main.c) writes result bytes to GPIOR0 and step
  * markers to GPIOR1 (1 = step begins, 2 = step ends); the harness appends the bytes to OUT.bin
  * and the simulated cycle count between markers, one line per step, to CYCLES.txt; it stops
  * when the firmware sleeps with interrupts off (cpu_Done).  Exit status 0 on a clean stop.

@@ -6,7 +6,9 @@
  * (fmi2_wrapper.c, fmi3_wrapper.c) translate the FMI calls into these functions.
  *
  * Variables (names, value references, types, start/min/max) are generated from Python by
- * grasprom.fmu into "grasp_fmu_config.h"; the same table produces modelDescription.xml.
+ * grasprom.export.codegen into "grasp_fmu_config.h", with the unit factors and the SI <-> core
+ * conversions gf_core_params() / gf_write_outputs(); the same table produces
+ * modelDescription.xml.
  * All values are stored as doubles indexed by value reference (Integer and Boolean values are
  * exact in a double).  Values are SI (m, N, N m, rad, s, Pa); the C core works in mm, MPa.
  *

@@ -144,47 +144,13 @@ int gf_enter_initialization(gf_instance_t *inst, const char *fn, double start_ti
     return GF_OK;
 }
 
-/* the core parameters (mm, N/mm, MPa) from the SI variables */
-static void core_params(const double *v, gc_params_t *p) {
-    p->thickness = v[GF_VR_thickness] * 1e3;
-    p->material = (int)v[GF_VR_material];
-    p->spring_k = v[GF_VR_spring_k] * 1e-3;
-    p->pulley_radius = v[GF_VR_pulley_radius] * 1e3;
-    p->damping = v[GF_VR_damping];
-    p->velocity_cutoff = v[GF_VR_velocity_cutoff];
-    p->torque_limit = v[GF_VR_torque_limit];
-    p->sample_time = v[GF_VR_sample_time];
-    p->coupling_k = v[GF_VR_coupling_stiffness] * 1e-3;
-    p->force_warning = v[GF_VR_force_warning];
-    p->pressure_warning = v[GF_VR_pressure_warning] * 1e-6;
-    p->jaw_length = v[GF_VR_jaw_length] * 1e3;
-    p->diameter = v[GF_VR_diameter] * 1e3;
-    p->encoder_counts = v[GF_VR_encoder_counts];
-    p->render_spring = v[GF_VR_render_spring] != 0.0;
-    p->tissue_scale = v[GF_VR_tissue_scale];
-    p->jaw_compliance = v[GF_VR_jaw_compliance] * 1e3;
-    p->backlash_deg = v[GF_VR_backlash] * (180.0 / 3.14159265358979323846);
-    p->friction_coulomb = v[GF_VR_friction_coulomb];
-    p->friction_load = v[GF_VR_friction_load_coefficient];
-    p->friction_viscous = v[GF_VR_friction_viscous] * 1e-3;
-    p->friction_vthr = v[GF_VR_friction_velocity_threshold] * 1e3;
-    p->prony_g[0] = v[GF_VR_prony_g_1];
-    p->prony_g[1] = v[GF_VR_prony_g_2];
-    p->prony_g[2] = v[GF_VR_prony_g_3];
-    p->prony_g[3] = v[GF_VR_prony_g_4];
-    p->prony_tau[0] = v[GF_VR_prony_tau_1];
-    p->prony_tau[1] = v[GF_VR_prony_tau_2];
-    p->prony_tau[2] = v[GF_VR_prony_tau_3];
-    p->prony_tau[3] = v[GF_VR_prony_tau_4];
-}
-
 int gf_exit_initialization(gf_instance_t *inst, const char *fn) {
     gc_params_t p;
     double t;
     int clamped, rc, status = GF_OK;
     const char *msg;
     if (gf_check_state(inst, fn, GF_INITIALIZATION)) return GF_ERROR;
-    core_params(inst->v, &p);
+    gf_core_params(inst->v, &p); /* generated (grasp_fmu_config.h) */
     rc = gc_check_params(&p, GC_MATERIALS, GC_N_MATERIALS, &t, &clamped, &msg);
     if (rc != 0) {
         gf_log(inst, GF_ERROR, "%s: parameters rejected: %s", fn, msg);
@@ -212,22 +178,6 @@ int gf_exit_initialization(gf_instance_t *inst, const char *fn) {
     inst->state = GF_STEP;
     gf_log(inst, GF_OK, "%s: controller initialised, sample time %g s", fn, p.sample_time);
     return status;
-}
-
-static void write_outputs(gf_instance_t *inst) {
-    const gc_output_t *o = &inst->o;
-    double *v = inst->v;
-    v[GF_VR_torque] = o->torque;
-    v[GF_VR_force_handle] = o->force_handle;
-    v[GF_VR_force_jaw] = o->force_jaw;
-    v[GF_VR_force_tissue] = o->force_tissue;
-    v[GF_VR_gap] = o->gap * 1e-3;
-    v[GF_VR_velocity] = o->velocity;
-    v[GF_VR_contact] = o->contact != 0;
-    v[GF_VR_tissue_warning] = o->tissue_warning != 0;
-    v[GF_VR_coupling_active] = o->coupling_active != 0;
-    v[GF_VR_saturated] = o->saturated != 0;
-    v[GF_VR_theta_clamped] = o->theta_clamped != 0;
 }
 
 int gf_do_step(gf_instance_t *inst, const char *fn, double t, double h) {
@@ -271,7 +221,7 @@ int gf_do_step(gf_instance_t *inst, const char *fn, double t, double h) {
     }
     inst->n += k;
     inst->v[GF_VR_time] = inst->t_start + (double)inst->n * T;
-    write_outputs(inst);
+    gf_write_outputs(&inst->o, inst->v); /* generated (grasp_fmu_config.h) */
     if (!(isfinite(inst->o.torque) && isfinite(inst->o.force_handle) &&
           isfinite(inst->o.force_jaw) && isfinite(inst->o.force_tissue) &&
           isfinite(inst->o.gap) && isfinite(inst->o.velocity))) {

@@ -1,9 +1,9 @@
 /*
  * grasp_core.c: the controller step of grasprom in C (see grasp_core.h for the build options).
- * The run-time step mirrors grasprom/controller.py, grasprom/kinematics.py and the scalar path
- * of grasprom/surrogate.py operation by operation, so that results agree to rounding; the
- * tabulated step (GC_TABULATED) evaluates the tables grasprom.arduino computes with the same
- * Python reference.
+ * The run-time step mirrors grasprom/control/controller.py, grasprom/chain/kinematics.py and
+ * the scalar path of grasprom/surrogate operation by operation, so that results agree to
+ * rounding; the tabulated step (GC_TABULATED) evaluates the tables grasprom.export.arduino
+ * computes with the same Python reference.
  */
 #include "grasp_core.h"
 
@@ -260,7 +260,7 @@ void gc_init(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c) {
 
 /* ---------------------------------------------------------------- the step */
 
-/* tissue force and stiffness at a gap, scaled (grasprom.controller.ImpedanceController._tissue) */
+/* tissue force and stiffness at a gap, scaled (grasprom.control.ImpedanceController._tissue) */
 static void tissue(gc_state_t *s, const gc_params_t *p, double gap, double *f, double *k) {
     surrogate_fast(s, gap, f, k);
     if (p->tissue_scale != 1.0) {
@@ -403,7 +403,7 @@ void gc_step_ext(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
 #else /* GC_TABULATED */
 /* ============================================================= tabulated (fixed or float) */
 /*
- * Step, per sample (Python reference: grasprom.controller.ImpedanceController.step):
+ * Step, per sample (Python reference: grasprom.control.ImpedanceController.step):
  *  1. clamp the count into [GF_N_LO, GF_N_TOP] (flag GF_THETA_CLAMPED);
  *  2. velocity: w += (1 - a) (dn - w), dn the count difference, w in counts/sample Q16,
  *     (1 - a) = GF_VEL_B / 2^16 with a = exp(-2 pi fc T) (exact discretisation, as Python);

@@ -1,4 +1,11 @@
-"""Stage 5, exports: the C core binding, the FMU (FMI 2.0 / 3.0) and the Arduino package."""
+"""Stage 5, exports: the C core binding, the FMU (FMI 2.0 / 3.0) and the Arduino package.
+
+Layout: :mod:`~grasprom.export.variables` is the one description of the interface (FMU
+variables, C structures, units, flags, Prony terms); :mod:`~grasprom.export.codegen` generates
+every header, ctypes structure, XML and HTML from it; :mod:`~grasprom.export.ccore` builds the
+C core for the host (ctypes); :mod:`~grasprom.export.fmu` packs the FMU;
+:mod:`grasprom.export.arduino` is the fixed-point Arduino export.
+"""
 
 from __future__ import annotations
 
@@ -13,12 +20,8 @@ from grasprom.export.arduino import (
     export_main,
     measure_size,
 )
-from grasprom.export.fmu import (
-    OUTPUT_COLUMNS,
-    build_driver,
-    export_fmu,
-    start_values,
-)
+from grasprom.export.fmu import build_driver, export_fmu
+from grasprom.export.variables import OUTPUT_COLUMNS, start_values
 
 __all__ = [
     "ArduinoExport",

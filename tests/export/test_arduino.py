@@ -177,8 +177,8 @@ def test_thickness_is_clamped_and_flagged(surrogate, tables, tmp_path):
     need("gcc", "gcc")
     cases = ar.clamp_thickness_cases(tables, surrogate)
     m = tables.materials[0]
-    ends = [ar.TestCase(m.name, m.thickness_um[0], cases[0].counts),
-            ar.TestCase(m.name, m.thickness_um[-1], cases[1].counts)]  # fmt: skip
+    ends = [ar.VectorCase(m.name, m.thickness_um[0], cases[0].counts),
+            ar.VectorCase(m.name, m.thickness_um[-1], cases[1].counts)]  # fmt: skip
     run = ar.run_host(tables, cases + ends, tmp_path)
     assert run.init_rc == [1, 1, 0, 0]
     assert run.outputs[0].tobytes() == run.outputs[2].tobytes()
@@ -235,7 +235,7 @@ def test_fmu_runtime_core_runs_on_the_avr_as_float_build(surrogate, tables, tmp_
     need("avr-size", "binutils-avr")
     need_simavr()
     counts = ar.sweep_counts(tables, 9)
-    cases = [ar.TestCase(m, th, counts) for m, th in (("mr", 1400), ("nh", 2000), ("le", 850))]
+    cases = [ar.VectorCase(m, th, counts) for m, th in (("mr", 1400), ("nh", 2000), ("le", 850))]
     r = ar.run_runtime_avr(surrogate, ControllerParams(), cases, tmp_path)
     print(
         f"\nrun-time float core on the AVR: cycles/step max {r.cycles.max()} mean "

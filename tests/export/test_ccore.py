@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from grasprom.control import ControllerParams, ImpedanceController, grasp_trajectory
-from grasprom.export.ccore import CCore, c_params, tables_source
+from grasprom.export.ccore import CCore, c_params
+from grasprom.export.codegen import tables_source
 
 
 def _trajectories():

@@ -32,7 +32,7 @@ from grasprom.control import (
     grasp_trajectory,
     simulate,
 )
-from grasprom.export.fmu import OUTPUT_COLUMNS, build_driver, export_fmu, start_values
+from grasprom.export import OUTPUT_COLUMNS, build_driver, export_fmu, start_values
 
 CI = os.environ.get("CI") == "true"
 REL = 1e-9

@@ -1,0 +1,127 @@
+"""The one interface description agrees with the C headers, the ctypes mirrors and the XML."""
+
+from __future__ import annotations
+
+import ctypes
+import re
+import shutil
+import subprocess
+import xml.etree.ElementTree as ET
+
+import pytest
+
+from grasprom.control import MAX_PRONY_TERMS, ControllerParams
+from grasprom.export import OUTPUT_COLUMNS
+from grasprom.export.codegen import (
+    GcOutput,
+    GcParams,
+    config_header,
+    model_description,
+)
+from grasprom.export.variables import (
+    FLAG_NAMES,
+    OUTPUT_FIELDS,
+    PARAMS_FIELDS,
+    PRONY_MAX,
+    SPECS,
+    UNITS,
+    variables,
+)
+from grasprom.paths import c_dir, c_file
+
+
+def _layout_program(structs: dict[str, type]) -> str:
+    """C source printing ``sizeof`` and every field's ``offsetof`` of the core structures."""
+    lines = ['#include <stddef.h>', '#include <stdio.h>', '#include "grasp_core.h"',
+             "int main(void) {"]  # fmt: skip
+    for cname, struct in structs.items():
+        lines.append(f'    printf("{cname} %zu\\n", sizeof({cname}));')
+        for name, _ in struct._fields_:
+            lines.append(f'    printf("{cname}.{name} %zu\\n", offsetof({cname}, {name}));')
+    lines.append('    printf("GC_PRONY_MAX %d\\n", GC_PRONY_MAX);')
+    lines += ["    return 0;", "}"]
+    return "\n".join(lines) + "\n"
+
+
+def test_ctypes_structs_match_the_c_structs(tmp_path):
+    """sizeof / offsetof of gc_params_t and gc_output_t (gcc) = the generated ctypes mirrors."""
+    if shutil.which("gcc") is None:
+        pytest.skip("gcc not found")
+    structs = {"gc_params_t": GcParams, "gc_output_t": GcOutput}
+    src = tmp_path / "layout.c"
+    src.write_text(_layout_program(structs))
+    exe = tmp_path / "layout"
+    subprocess.run(["gcc", "-std=c99", "-Wall", "-Werror", f"-I{c_dir() / 'include'}", "-o",
+                    str(exe), str(src)], check=True)  # fmt: skip
+    got = dict(line.rsplit(" ", 1) for line in subprocess.check_output([str(exe)], text=True)
+               .splitlines())  # fmt: skip
+    for cname, struct in structs.items():
+        assert int(got[cname]) == ctypes.sizeof(struct), cname
+        for name, _ in struct._fields_:
+            assert int(got[f"{cname}.{name}"]) == getattr(struct, name).offset, (cname, name)
+    assert int(got["GC_PRONY_MAX"]) == MAX_PRONY_TERMS
+
+
+def test_prony_count_agrees_everywhere(surrogate):
+    """Python's MAX_PRONY_TERMS is the Prony count of the C headers, the structs and the FMU."""
+    assert PRONY_MAX == MAX_PRONY_TERMS
+    header = c_file("grasp_core.h").read_text()
+    assert int(re.search(r"#define GC_PRONY_MAX (\d+)", header).group(1)) == MAX_PRONY_TERMS
+    for f in ("prony_g", "prony_tau"):
+        assert next(x for x in PARAMS_FIELDS if x.name == f).length == MAX_PRONY_TERMS
+        assert getattr(GcParams, f).size == MAX_PRONY_TERMS * ctypes.sizeof(ctypes.c_double)
+    names = [v.name for v in variables(ControllerParams(), surrogate)]
+    for prefix in ("prony_g_", "prony_tau_"):
+        assert [n for n in names if n.startswith(prefix)] == [
+            f"{prefix}{i + 1}" for i in range(MAX_PRONY_TERMS)
+        ]
+    # the tabulated step unrolls one term per GF_PRONY_TERM(i)
+    core = c_file("grasp_core.c").read_text()
+    unrolled = sorted({int(i) for i in re.findall(r"GF_PRONY_TERM\((\d)\)\s*$", core, re.M)})
+    assert unrolled == list(range(MAX_PRONY_TERMS))
+    cfg = config_header(variables(ControllerParams(), surrogate), "{token}")
+    assert f"#define GF_PRONY_MAX {MAX_PRONY_TERMS}" in cfg
+
+
+def test_flag_names_agree_everywhere(surrogate):
+    """Flag names and bits: Python, gc_output_t, gf_output_t.flags bits, FMU outputs, XML."""
+    header = c_file("grasp_core.h").read_text()
+    for bit, name in enumerate(FLAG_NAMES):
+        m = re.search(rf"#define GF_{name.upper()} 0x([0-9a-fA-F]+)u", header)
+        assert m and int(m.group(1), 16) == 1 << bit, name
+    int_fields = [f.name for f in OUTPUT_FIELDS if f.ctype == "int"]
+    assert int_fields == list(FLAG_NAMES)
+    bool_outputs = [n for n, (_, factor) in OUTPUT_COLUMNS.items() if factor is None]
+    assert bool_outputs == list(FLAG_NAMES)
+    md = model_description(variables(ControllerParams(), surrogate), 2, "{t}", ControllerParams(),
+                           "d")  # fmt: skip
+    root = ET.fromstring(md)
+    xml_bools = [
+        sv.get("name")
+        for sv in root.iter("ScalarVariable")
+        if sv.get("causality") == "output" and sv.find("Boolean") is not None
+    ]
+    assert xml_bools == list(FLAG_NAMES)
+
+
+def test_every_core_field_is_mapped_once():
+    """Every gc_params_t element is set by exactly one FMU parameter, every output field used
+    by the FMU exists, and the unit factors are exact reciprocals."""
+    elements = []
+    for f in PARAMS_FIELDS:
+        elements += [f.name] if f.length == 1 else [f"{f.name}[{i}]" for i in range(f.length)]
+    mapped = [s.core_field for s in SPECS if s.causality == "parameter" and s.core_field]
+    assert sorted(mapped) == sorted(elements)
+    out_fields = {f.name for f in OUTPUT_FIELDS}
+    assert all(s.core_field in out_fields for s in SPECS if s.causality == "output")
+    for s in SPECS:
+        if s.core_unit is not None:
+            assert s.core_unit in [d for d, _ in UNITS[s.unit][1]], s.name
+            assert s.to_si * s.to_core == 1.0 and 1.0 / s.to_si == s.to_core, s.name
+
+
+def test_fmu_model_uses_the_generated_conversions():
+    """fmu_model.c has no unit literals of its own: it calls the generated conversions."""
+    src = c_file("fmu_model.c").read_text()
+    assert "gf_core_params(" in src and "gf_write_outputs(" in src
+    assert not re.search(r"\* 1e-?[36]\b|180\.0 / 3\.14", src)
