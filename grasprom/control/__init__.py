@@ -1,40 +1,116 @@
 """Stage 4, the controller: parameters, the open-loop impedance controller (Python reference),
-simulation of trajectories and passivity tuning with python-control."""
+simulation of trajectories and passivity tuning with python-control.
+
+Layout (a module per concept, lower layers first; ``import control`` inside means python-control):
+
+* :mod:`~grasprom.control.params` -- :class:`ControllerParams` and its JSON file form.
+* :mod:`~grasprom.control.impedance` -- :class:`ImpedanceController`, one step per sample
+  (:class:`StepOutput`); the C core of the exports mirrors it.
+* :mod:`~grasprom.control.trajectory` -- trajectories through the controller: :func:`simulate`,
+  :func:`validate_trajectory`, :func:`grasp_trajectory`.
+* :mod:`~grasprom.control.device` -- :class:`DeviceParams` (haptic handle), :class:`HandParams`.
+* :mod:`~grasprom.control.stiffness` -- rendered stiffness along theta (:class:`OperatingPoints`),
+  static torque, Prony factor and total virtual damping.
+* :mod:`~grasprom.control.passivity` -- Colgate/Schenkel required damping, passive stiffness,
+  Abbott-Okamura bound, Z-width.
+* :mod:`~grasprom.control.loop` -- closed-loop poles and margins (python-control).
+* :mod:`~grasprom.control.verification` -- time-domain hold simulation of device + controller +
+  hand, :func:`verify_by_simulation`.
+* :mod:`~grasprom.control.summary` -- the tuning summary dict.
+* :mod:`~grasprom.control.tuning` -- :func:`tune` and :class:`TuningResult`.
+* :mod:`~grasprom.control.report` -- the report's JSON and text forms.
+* :mod:`~grasprom.control.plots` -- :func:`plot_tuning`.
+* :mod:`~grasprom.control.outputs` -- :func:`write_outputs` (the files of ``grasprom tune``).
+"""
 
 from __future__ import annotations
 
-from grasprom.control.controller import (
-    MAX_PRONY_TERMS,
-    ControllerParams,
+from grasprom.control.device import DeviceParams, HandParams
+from grasprom.control.impedance import (
+    COLD_START_ITERATIONS,
+    NEWTON_ITERATIONS,
     ImpedanceController,
     StepOutput,
-    grasp_trajectory,
+)
+from grasprom.control.loop import closed_loop, environment_tf
+from grasprom.control.outputs import write_outputs
+from grasprom.control.params import (
+    CONTROLLER_FILE_VERSION,
+    MAX_PRONY_TERMS,
+    ControllerParams,
     load_params,
+    params_from_dict,
+    params_to_dict,
     save_params,
+)
+from grasprom.control.passivity import (
+    abbott_okamura_bound,
+    colgate_required_damping,
+    max_passive_stiffness,
+    required_damping,
+    zwidth_boundary,
+)
+from grasprom.control.plots import plot_tuning
+from grasprom.control.report import format_report
+from grasprom.control.stiffness import (
+    OperatingPoints,
+    StiffestPoint,
+    operating_points,
+    prony_stiffness_factor,
+    rendered_stiffness,
+    static_handle_torque_Nm,
+    stiffest_point,
+    virtual_damping_Nms_per_rad,
+)
+from grasprom.control.trajectory import (
+    SIMULATION_COLUMNS,
+    TRAJECTORY_COLUMNS,
+    grasp_trajectory,
     simulate,
+    validate_trajectory,
 )
-from grasprom.control.tuning import (
-    DeviceParams,
-    HandParams,
-    TuningResult,
-    plot_tuning,
-    tune,
-    write_outputs,
-)
+from grasprom.control.tuning import TuningResult, tune
+from grasprom.control.verification import simulate_hold, verify_by_simulation
 
 __all__ = [
+    "COLD_START_ITERATIONS",
+    "CONTROLLER_FILE_VERSION",
     "ControllerParams",
     "DeviceParams",
     "HandParams",
     "ImpedanceController",
     "MAX_PRONY_TERMS",
+    "NEWTON_ITERATIONS",
+    "OperatingPoints",
+    "SIMULATION_COLUMNS",
     "StepOutput",
+    "StiffestPoint",
+    "TRAJECTORY_COLUMNS",
     "TuningResult",
+    "abbott_okamura_bound",
+    "closed_loop",
+    "colgate_required_damping",
+    "environment_tf",
+    "format_report",
     "grasp_trajectory",
     "load_params",
+    "max_passive_stiffness",
+    "operating_points",
+    "params_from_dict",
+    "params_to_dict",
     "plot_tuning",
+    "prony_stiffness_factor",
+    "rendered_stiffness",
+    "required_damping",
     "save_params",
     "simulate",
+    "simulate_hold",
+    "static_handle_torque_Nm",
+    "stiffest_point",
     "tune",
+    "validate_trajectory",
+    "verify_by_simulation",
+    "virtual_damping_Nms_per_rad",
     "write_outputs",
+    "zwidth_boundary",
 ]

@@ -14,7 +14,7 @@ import pytest
 from scipy.optimize import brentq
 
 from grasprom.chain import kinematics as kin
-from grasprom.control.controller import (
+from grasprom.control import (
     ControllerParams,
     ImpedanceController,
     grasp_trajectory,

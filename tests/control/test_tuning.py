@@ -12,8 +12,17 @@ import numpy as np
 import pytest
 
 from grasprom.cli import main
-from grasprom.control import tuning as tn
-from grasprom.control.controller import ControllerParams, ImpedanceController, load_params
+from grasprom.control import (
+    ControllerParams,
+    ImpedanceController,
+    device,
+    load_params,
+    loop,
+    passivity,
+    stiffness,
+    tuning,
+    verification,
+)
 from grasprom.surrogate import Surrogate
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -28,8 +37,8 @@ def sur() -> Surrogate:
 
 
 @pytest.fixture(scope="session")
-def tuned(sur) -> tn.TuningResult:
-    return tn.tune(sur)
+def tuned(sur) -> tuning.TuningResult:
+    return tuning.tune(sur)
 
 
 # ------------------------------------------------------------------ passivity conditions
@@ -37,31 +46,31 @@ def tuned(sur) -> tn.TuningResult:
 @pytest.mark.parametrize("B", [0.0, 0.002, -0.004, 0.05])
 def test_colgate_bound_matches_closed_form(K, B):
     # no delay, raw backward difference: b > K T / 2 + |B|
-    got = tn.required_damping(K, B, T, None, 0)
-    assert got == pytest.approx(tn.colgate_required_damping(K, B, T), rel=1e-5, abs=1e-9)
+    got = passivity.required_damping(K, B, T, None, 0)
+    assert got == pytest.approx(passivity.colgate_required_damping(K, B, T), rel=1e-5, abs=1e-9)
 
 
 def test_delay_bound_closed_form_and_inverse():
     # one-sample delay, B = 0: b > 3 K T / 2
-    assert tn.required_damping(10.0, 0.0, T, None, 1) == pytest.approx(15.0 * T, rel=1e-5)
-    assert tn.max_passive_stiffness(0.01, 0.0, T, None, 0) == pytest.approx(20.0, rel=1e-9)
+    assert passivity.required_damping(10.0, 0.0, T, None, 1) == pytest.approx(15.0 * T, rel=1e-5)
+    assert passivity.max_passive_stiffness(0.01, 0.0, T, None, 0) == pytest.approx(20.0, rel=1e-9)
     # K_max inverts required_damping, also with B, filter and delay
     for B, fc, d in [(0.002, 100.0, 1), (0.0, 30.0, 1), (0.004, 200.0, 0)]:
-        kmax = tn.max_passive_stiffness(0.01, B, T, fc, d)
+        kmax = passivity.max_passive_stiffness(0.01, B, T, fc, d)
         assert kmax > 0
-        assert tn.required_damping(kmax, B, T, fc, d) == pytest.approx(0.01, rel=1e-6)
+        assert passivity.required_damping(kmax, B, T, fc, d) == pytest.approx(0.01, rel=1e-6)
     # filtered virtual damping offsets the delay's negative damping at low frequency
-    assert tn.max_passive_stiffness(0.01, 0.002, T, 100.0, 1) > tn.max_passive_stiffness(
-        0.01, 0.0, T, 100.0, 1
-    )
+    assert passivity.max_passive_stiffness(
+        0.01, 0.002, T, 100.0, 1
+    ) > passivity.max_passive_stiffness(0.01, 0.0, T, 100.0, 1)
     # too much damping: nothing is passive
-    assert tn.max_passive_stiffness(0.01, 0.05, T, None, 0) == 0.0
+    assert passivity.max_passive_stiffness(0.01, 0.05, T, None, 0) == 0.0
 
 
 def test_abbott_okamura():
-    assert tn.abbott_okamura_bound(0.01, T, 0.0, 1e-3) == pytest.approx(20.0)
-    assert tn.abbott_okamura_bound(0.01, T, 0.01, 1e-4) == pytest.approx(200.0)
-    assert tn.abbott_okamura_bound(0.01, T, 0.01, 0.0) == math.inf
+    assert passivity.abbott_okamura_bound(0.01, T, 0.0, 1e-3) == pytest.approx(20.0)
+    assert passivity.abbott_okamura_bound(0.01, T, 0.01, 1e-4) == pytest.approx(200.0)
+    assert passivity.abbott_okamura_bound(0.01, T, 0.01, 0.0) == math.inf
 
 
 # ------------------------------------------------------------------ rendered stiffness
@@ -84,17 +93,17 @@ def test_chain_stiffness_matches_controller_static_map(sur, material, thickness)
         return out.force_handle_N * L3
 
     ths = np.array([0.3, 1.0, 3.0, 8.0, 15.0, 21.0])
-    op = tn.rendered_stiffness(sur, p, ths)
+    op = stiffness.rendered_stiffness(sur, p, ths)
     for th, K in zip(ths, op.K_Nm_per_rad):
         t = math.radians(th)
         fd = -(static_torque(t + h) - static_torque(t - h)) / (2 * h)
         assert K == pytest.approx(fd, rel=2e-3, abs=1e-4), th
-        assert tn.static_handle_torque_Nm(sur, p, np.array([t]))[0] == pytest.approx(
+        assert stiffness.static_handle_torque_Nm(sur, p, np.array([t]))[0] == pytest.approx(
             static_torque(t), rel=1e-9, abs=1e-12
         )
     # the coupling bounds the jaw stiffness; raw tissue is far stiffer at the closed end
     assert np.all(op.jaw_stiffness_N_per_mm <= 1.0 + 1e-12)
-    op0 = tn.rendered_stiffness(sur, p, [0.0])
+    op0 = stiffness.rendered_stiffness(sur, p, [0.0])
     assert op0.K_raw_Nm_per_rad[0] > 50 * op0.K_Nm_per_rad[0]
 
 
@@ -106,15 +115,15 @@ def test_tuned_parameters_are_passive_everywhere(sur, tuned):
     assert sm["passivity_margin"] >= sm["safety_factor"] * (1 - 1e-6)
     # every operating point satisfies the delay-aware condition with margin
     allK = np.concatenate([o.K_Nm_per_rad for o in tuned.points])
-    b_req = tn.required_damping(
+    b_req = passivity.required_damping(
         np.array([allK.max(), allK.min()]), p.damping_Nms_per_rad, T, p.velocity_cutoff_Hz, 1
     )
     assert np.all(b_req * sm["safety_factor"] <= tuned.device.damping_Nms_per_rad * (1 + 1e-9))
     # k_c is (nearly) the largest: a 10 % stiffer coupling breaks the margin
     p2 = replace(p, coupling_stiffness_N_per_mm=1.1 * p.coupling_stiffness_N_per_mm)
-    K2 = max(float(o.K_Nm_per_rad.max()) for o in tn.operating_points(sur, p2, n_theta=56))
+    K2 = max(float(o.K_Nm_per_rad.max()) for o in stiffness.operating_points(sur, p2, n_theta=56))
     assert (
-        tn.required_damping(K2, p.damping_Nms_per_rad, T, p.velocity_cutoff_Hz, 1)
+        passivity.required_damping(K2, p.damping_Nms_per_rad, T, p.velocity_cutoff_Hz, 1)
         * sm["safety_factor"]
         > tuned.device.damping_Nms_per_rad
     )
@@ -139,15 +148,15 @@ def test_tuned_pass_and_rejected_oscillate_in_simulation(tuned):
 
 def test_zero_damping_on_low_damping_device_oscillates(sur, tuned):
     # the tuner's B on a device with 10x less physical damping and no friction: rejected
-    dev = tn.DeviceParams(damping_Nms_per_rad=0.001, coulomb_Nm=0.0)
+    dev = device.DeviceParams(damping_Nms_per_rad=0.001, coulomb_Nm=0.0)
     p = replace(tuned.params, material="le", thickness_mm=2.0, damping_Nms_per_rad=0.0)
-    sim = tn.simulate_hold(sur, p, dev, tuned.hand, theta_start_offset_deg=1.0)
+    sim = verification.simulate_hold(sur, p, dev, tuned.hand, theta_start_offset_deg=1.0)
     assert sim["growing"]
     assert sim["net_generated_J"] > 0
-    K = float(tn.rendered_stiffness(sur, p, [sim["theta_hold_deg"]]).K_Nm_per_rad[0])
-    assert tn.required_damping(K, 0.0, T, p.velocity_cutoff_Hz, 1) > dev.damping_Nms_per_rad
+    K = float(stiffness.rendered_stiffness(sur, p, [sim["theta_hold_deg"]]).K_Nm_per_rad[0])
+    assert passivity.required_damping(K, 0.0, T, p.velocity_cutoff_Hz, 1) > dev.damping_Nms_per_rad
     # and the tuner, run for that device, picks a much softer coupling
-    r = tn.tune(sur, device=dev, materials=["le"], thicknesses=[2.0], verify=False, n_theta=45)
+    r = tuning.tune(sur, device=dev, materials=["le"], thicknesses=[2.0], verify=False, n_theta=45)
     assert r.params.coupling_stiffness_N_per_mm < 0.2 * tuned.params.coupling_stiffness_N_per_mm
 
 
@@ -161,7 +170,7 @@ def test_pole_check_agrees_with_energy_simulation(sur, tuned, factor):
         thickness_mm=2.0,
         coupling_stiffness_N_per_mm=factor * tuned.params.coupling_stiffness_N_per_mm,
     )
-    sim = tn.simulate_hold(
+    sim = verification.simulate_hold(
         sur,
         p,
         dev,
@@ -171,8 +180,8 @@ def test_pole_check_agrees_with_energy_simulation(sur, tuned, factor):
         duration_s=1.0,
         quantise=False,
     )
-    K = float(tn.rendered_stiffness(sur, p, [sim["theta_hold_deg"]]).K_Nm_per_rad[0])
-    cl = tn.closed_loop(
+    K = float(stiffness.rendered_stiffness(sur, p, [sim["theta_hold_deg"]]).K_Nm_per_rad[0])
+    cl = loop.closed_loop(
         K, p.damping_Nms_per_rad, p.velocity_cutoff_Hz, T, dev, tuned.hand, p.chain_params.L3_mm
     )
     decays = sim["amp_last_rad"] < sim["amp_first_rad"] and not sim["hit_stop"]
@@ -183,7 +192,7 @@ def test_pole_check_agrees_with_energy_simulation(sur, tuned, factor):
         ratio = sim["amp_last_rad"] / sim["amp_first_rad"]
         assert ratio == pytest.approx(cl["max_pole_mag"] ** 400, rel=0.35)
     passive = (
-        tn.required_damping(K, p.damping_Nms_per_rad, T, p.velocity_cutoff_Hz, 1)
+        passivity.required_damping(K, p.damping_Nms_per_rad, T, p.velocity_cutoff_Hz, 1)
         < dev.damping_Nms_per_rad
     )
     if passive:
@@ -281,16 +290,16 @@ def test_cli_tune_bad_input(sur, tmp_path, capsys, args, needle):
 
 def test_bad_parameters():
     with pytest.raises(ValueError, match="damping_Nms_per_rad"):
-        tn.DeviceParams(damping_Nms_per_rad=-1.0)
+        device.DeviceParams(damping_Nms_per_rad=-1.0)
     with pytest.raises(ValueError, match="inertia_kg_m2"):
-        tn.DeviceParams(inertia_kg_m2=0.0)
+        device.DeviceParams(inertia_kg_m2=0.0)
     with pytest.raises(ValueError, match="delay_samples"):
-        tn.DeviceParams(delay_samples=-1)
+        device.DeviceParams(delay_samples=-1)
     with pytest.raises(ValueError, match="coulomb_Nm"):
-        tn.DeviceParams(coulomb_Nm=float("nan"))
+        device.DeviceParams(coulomb_Nm=float("nan"))
     with pytest.raises(ValueError, match="stiffness_N_per_m"):
-        tn.HandParams(stiffness_N_per_m=-5.0)
-    h = tn.HandParams(mass_kg=0.01, damping_Ns_per_m=2.0, stiffness_N_per_m=300.0)
+        device.HandParams(stiffness_N_per_m=-5.0)
+    h = device.HandParams(mass_kg=0.01, damping_Ns_per_m=2.0, stiffness_N_per_m=300.0)
     jh, bh, kh = h.at_pivot(54.1)
     assert kh == pytest.approx(300.0 * 0.0541**2)
     assert bh == pytest.approx(2.0 * 0.0541**2)
@@ -303,24 +312,24 @@ def test_augmentation_in_the_rendered_stiffness(sur):
     puts k_c in series (k_c,eff), the scale multiplies the tissue."""
     p0 = ControllerParams(material="le", thickness_mm=2.0)
     ths = np.linspace(0.0, 22.0, 45)
-    op0 = tn.rendered_stiffness(sur, p0, ths)
+    op0 = stiffness.rendered_stiffness(sur, p0, ths)
     pp = replace(p0, prony_g=(0.6, 0.4), prony_tau_s=(0.2, 1.0))
-    pf = tn.prony_stiffness_factor(pp)
+    pf = stiffness.prony_stiffness_factor(pp)
     a1, a2 = math.exp(-T / 0.2), math.exp(-T / 1.0)
     assert pf == pytest.approx(1 + 0.6 * 2 / (1 + a1) + 0.4 * 2 / (1 + a2), rel=1e-15)
     assert pf == pytest.approx(2.0, abs=2e-3)
-    opp = tn.rendered_stiffness(sur, pp, ths)
+    opp = stiffness.rendered_stiffness(sur, pp, ths)
     assert np.array_equal(opp.force_jaw_N, op0.force_jaw_N)  # relaxed static map unchanged
     assert opp.jaw_stiffness_N_per_mm == pytest.approx(pf * op0.jaw_stiffness_N_per_mm, rel=1e-12)
     assert opp.K_Nm_per_rad.max() > 1.8 * op0.K_Nm_per_rad.max()
     pc = replace(p0, coupling_stiffness_N_per_mm=2.0, jaw_compliance_mm_per_N=0.5)
     assert pc.coupling_effective_N_per_mm == pytest.approx(1.0)
-    opc = tn.rendered_stiffness(sur, pc, ths)
+    opc = stiffness.rendered_stiffness(sur, pc, ths)
     assert np.all(opc.jaw_stiffness_N_per_mm <= 1.0 + 1e-12)
-    op1 = tn.rendered_stiffness(sur, replace(p0, coupling_stiffness_N_per_mm=1.0), ths)
+    op1 = stiffness.rendered_stiffness(sur, replace(p0, coupling_stiffness_N_per_mm=1.0), ths)
     assert opc.K_Nm_per_rad == pytest.approx(op1.K_Nm_per_rad, rel=1e-12)  # = a 1 N/mm coupling
     ps = replace(p0, tissue_scale=1.5)
-    ops = tn.rendered_stiffness(sur, ps, ths)
+    ops = stiffness.rendered_stiffness(sur, ps, ths)
     assert ops.tissue_stiffness_N_per_mm == pytest.approx(1.5 * op0.tissue_stiffness_N_per_mm,
                                                           rel=1e-15)  # fmt: skip
 
@@ -329,11 +338,11 @@ def test_tune_with_prony_halves_the_coupling(sur):
     """sum g = 1 doubles the instantaneous stiffness: the tuned k_c about halves, and the
     un-adjusted k_c would break the passivity margin."""
     kw = dict(materials=["le"], thicknesses=[2.0], verify=False, n_theta=45)
-    r0 = tn.tune(sur, ControllerParams(), **kw)
-    rp = tn.tune(sur, ControllerParams(prony_g=(1.0,), prony_tau_s=(1.0,)), **kw)
+    r0 = tuning.tune(sur, ControllerParams(), **kw)
+    rp = tuning.tune(sur, ControllerParams(prony_g=(1.0,), prony_tau_s=(1.0,)), **kw)
     kc0 = r0.params.coupling_stiffness_N_per_mm
     kcp = rp.params.coupling_stiffness_N_per_mm
-    pf = tn.prony_stiffness_factor(rp.params)
+    pf = stiffness.prony_stiffness_factor(rp.params)
     assert kc0 == pytest.approx(0.95)
     assert 0.45 <= kcp / kc0 <= 0.56  # measured 0.50 / 0.95 = 0.53
     assert kcp * pf == pytest.approx(kc0, rel=0.06)
@@ -342,10 +351,12 @@ def test_tune_with_prony_halves_the_coupling(sur):
     assert sm["augmentation"]["prony_stiffness_factor"] == pytest.approx(pf)
     # the Prony-rendering controller at the un-adjusted k_c renders beyond the passive bound
     bad = replace(rp.params, coupling_stiffness_N_per_mm=kc0)
-    K = max(float(o.K_Nm_per_rad.max()) for o in tn.operating_points(sur, bad, [2.0], ["le"], 45))
+    K = max(
+        float(o.K_Nm_per_rad.max()) for o in stiffness.operating_points(sur, bad, [2.0], ["le"], 45)
+    )
     p = rp.params
     assert (
-        tn.required_damping(K, p.damping_Nms_per_rad, T, p.velocity_cutoff_Hz, 1)
+        passivity.required_damping(K, p.damping_Nms_per_rad, T, p.velocity_cutoff_Hz, 1)
         * sm["safety_factor"]
         > rp.device.damping_Nms_per_rad
     )
@@ -355,29 +366,29 @@ def test_tune_counts_viscous_friction_as_virtual_damping(sur):
     kw = dict(materials=["le"], thicknesses=[2.0], verify=False, n_theta=45)
     L3 = ControllerParams().chain_params.L3_mm
     bv = 0.002  # N s/mm at the finger = 5.9e-3 N m s/rad at the pivot, 3x the tuned B
-    r = tn.tune(sur, ControllerParams(friction_viscous_N_s_per_mm=bv), **kw)
+    r = tuning.tune(sur, ControllerParams(friction_viscous_N_s_per_mm=bv), **kw)
     p = r.params
     Bv = bv * L3 * L3 * 1e-3
-    assert tn.virtual_damping_Nms_per_rad(p) == pytest.approx(p.damping_Nms_per_rad + Bv)
+    assert stiffness.virtual_damping_Nms_per_rad(p) == pytest.approx(p.damping_Nms_per_rad + Bv)
     assert p.damping_Nms_per_rad == 0.0  # the friction alone exceeds the best B
     # the passivity check used the total: margin >= safety with B_total
     Kmax = r.summary["max_rendered_K_Nm_per_rad"]
-    b_req = tn.required_damping(Kmax, p.damping_Nms_per_rad + Bv, T, p.velocity_cutoff_Hz, 1)
+    b_req = passivity.required_damping(Kmax, p.damping_Nms_per_rad + Bv, T, p.velocity_cutoff_Hz, 1)
     assert b_req * r.summary["safety_factor"] <= r.device.damping_Nms_per_rad * (1 + 1e-9)
     assert r.summary["required_damping_Nms_per_rad"] == pytest.approx(b_req, rel=1e-9)
     # ignoring it: the plain tuning (the defaults: k_c 0.95, B 1.87e-3, 200 Hz) plus this
     # friction needs more damping than the device has
     d0 = ControllerParams(material="le", thickness_mm=2.0)
-    K0 = float(tn.rendered_stiffness(sur, d0, n_theta=45).K_Nm_per_rad.max())
-    assert tn.required_damping(K0, d0.damping_Nms_per_rad + Bv, T, 200.0, 1) > (
+    K0 = float(stiffness.rendered_stiffness(sur, d0, n_theta=45).K_Nm_per_rad.max())
+    assert passivity.required_damping(K0, d0.damping_Nms_per_rad + Bv, T, 200.0, 1) > (
         r.device.damping_Nms_per_rad
     )
     assert "counted" in r.report()
     with pytest.raises(ValueError, match="cannot be rendered passively"):
-        tn.tune(sur, ControllerParams(friction_viscous_N_s_per_mm=0.5), **kw)
+        tuning.tune(sur, ControllerParams(friction_viscous_N_s_per_mm=0.5), **kw)
     # a device that cannot even render the spring: an error, not an endless k_c search
     with pytest.raises(ValueError, match="no coupling stiffness is passive"):
-        tn.tune(sur, ControllerParams(), tn.DeviceParams(damping_Nms_per_rad=1e-5), **kw)
+        tuning.tune(sur, ControllerParams(), device.DeviceParams(damping_Nms_per_rad=1e-5), **kw)
 
 
 def test_cli_tune_augmented(sur, tmp_path, capsys):

@@ -1,0 +1,324 @@
+"""Controller parameters (:class:`ControllerParams`) and their JSON file form.
+
+``grasprom tune`` writes ``controller.json`` with :func:`save_params`; every consumer (simulate,
+the FMU and Arduino exports, the gap diagnosis) reads it back with :func:`load_params`.  The
+dict form (:func:`params_to_dict`, :func:`params_from_dict`) nests the chain geometry and
+carries a format version.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any
+
+from grasprom.chain import kinematics as kin
+from grasprom.fe import MATERIAL_NAMES
+
+__all__ = [
+    "CONTROLLER_FILE_VERSION",
+    "MAX_PRONY_TERMS",
+    "ControllerParams",
+    "load_params",
+    "params_from_dict",
+    "params_to_dict",
+    "save_params",
+]
+
+MAX_PRONY_TERMS = 4
+"""Largest number of Prony terms the controller renders (the C core has room for 4)."""
+
+CONTROLLER_FILE_VERSION = 1
+"""``format_version`` of the controller parameter files."""
+
+_POSITIVE_FIELDS = (
+    "thickness_mm",
+    "pulley_radius_mm",
+    "velocity_cutoff_Hz",
+    "torque_limit_Nm",
+    "sample_time_s",
+    "coupling_stiffness_N_per_mm",
+    "force_warning_N",
+    "pressure_warning_MPa",
+    "jaw_length_mm",
+    "diameter_mm",
+    "tissue_scale",
+    "friction_velocity_threshold_mm_per_s",
+)
+"""Numeric fields that must be finite and > 0."""
+
+_NON_NEGATIVE_RATES = ("spring_k_N_per_mm", "damping_Nms_per_rad")
+"""Spring rate and virtual damping: finite and >= 0."""
+
+_NON_NEGATIVE_EFFECTS = (
+    "jaw_compliance_mm_per_N",
+    "backlash_deg",
+    "friction_coulomb_N",
+    "friction_load_coefficient",
+    "friction_viscous_N_s_per_mm",
+)
+"""Rendered instrument effects (0 = off): numbers, finite and >= 0."""
+
+_PRONY_FIELDS = ("prony_g", "prony_tau_s")
+
+
+@dataclass(frozen=True)
+class ControllerParams:
+    """Parameters of the open-loop impedance controller (units in the names).
+
+    Parameters
+    ----------
+    thickness_mm : float
+        Colon wall thickness (mm); must lie in the surrogate's range.
+    material : str
+        ``mr``, ``nh`` or ``le``.
+    spring_k_N_per_mm : float
+        Return-spring rate of the instrument (N/mm), overrides the chain's.
+    pulley_radius_mm : float
+        Motor pulley radius (mm): torque = cable tension x radius.
+    damping_Nms_per_rad : float
+        Virtual damping B at the handle pivot (N m s/rad), on the filtered velocity.
+    velocity_cutoff_Hz : float
+        Cutoff of the first-order velocity low-pass filter (Hz).
+    torque_limit_Nm : float
+        Motor torque saturation (N m), symmetric.
+    sample_time_s : float
+        Controller period T (s).
+    coupling_stiffness_N_per_mm : float
+        Virtual coupling stiffness k_c at the jaw (N/mm): the bound on the rendered jaw
+        stiffness.  The defaults of ``k_c``, ``B`` and the cutoff are what ``grasprom tune``
+        chooses for the default device (b = 0.01 N m s/rad) at 1 kHz: passive everywhere with a
+        margin of 1.26.
+    force_warning_N : float
+        Tissue-safety threshold on the jaw force (N).
+    pressure_warning_MPa : float
+        Tissue-safety threshold on the mean contact pressure (MPa).
+    jaw_length_mm : float
+        Length of tube under the jaws (mm), as in the FE model (contact area for the pressure).
+    diameter_mm : float
+        Tube outer diameter (mm), for the contact width of the flattened tube.
+    encoder_counts_per_rev : int
+        Resolution of the motor-shaft encoder (counts/rev, 4 x lines for a quadrature
+        encoder); 0 disables quantisation.  The handle turns ``r / L3`` times the motor, so one
+        count is ``2 pi r / (counts L3)`` rad of handle.
+    render_spring : bool
+        Include the instrument's return spring in the rendered handle force.
+    chain : kinematics.ChainParams
+        Linkage geometry (``spring_k_N_per_mm`` above replaces its spring rate).
+    tissue_scale : float
+        Factor on the surrogate tissue force and stiffness (1, > 0); ``tissue_stiffness_scale``
+        of the augmented model.
+    jaw_compliance_mm_per_N : float
+        Series compliance of jaw and mechanism ``C`` (mm/N, >= 0): the coupling becomes
+        ``k_c,eff = 1 / (1/k_c + C)`` (proxy gap ``g + (C + 1/k_c) Fg``).
+    backlash_deg : float
+        Total play width between the encoder and the linkage (deg of handle, >= 0).
+    friction_coulomb_N : float
+        Coulomb friction at the finger (N, >= 0), in the direction of the last motion.
+    friction_load_coefficient : float
+        Load-proportional Coulomb friction (1, >= 0): ``mu |Fi_t|`` with ``Fi_t`` the tissue part
+        of the handle force (N).
+    friction_viscous_N_s_per_mm : float
+        Viscous friction at the finger (N s/mm of finger speed, >= 0); a virtual damping of
+        ``b L3^2 1e-3`` N m s/rad at the handle pivot.
+    friction_velocity_threshold_mm_per_s : float
+        Finger speed (mm/s, > 0) above which the friction direction follows the motion; below
+        it the last direction is kept.
+    prony_g : tuple of float
+        Prony coefficients ``g_i`` (1, >= 0) of the quasi-linear viscoelastic jaw force, at most
+        :data:`MAX_PRONY_TERMS`; the instantaneous stiffness is ``1 + sum g_i`` times the relaxed.
+    prony_tau_s : tuple of float
+        Relaxation times ``tau_i`` (s, > 0), as many as ``prony_g``.
+    """
+
+    thickness_mm: float = 1.4
+    material: str = "mr"
+    spring_k_N_per_mm: float = kin.ChainParams().spring_k_N_per_mm
+    pulley_radius_mm: float = 10.0
+    damping_Nms_per_rad: float = 0.001867
+    velocity_cutoff_Hz: float = 200.0
+    torque_limit_Nm: float = 1.0
+    sample_time_s: float = 1e-3
+    coupling_stiffness_N_per_mm: float = 0.95
+    force_warning_N: float = 50.0
+    pressure_warning_MPa: float = 0.33
+    jaw_length_mm: float = 10.0
+    diameter_mm: float = 30.0
+    encoder_counts_per_rev: int = 4096
+    render_spring: bool = True
+    chain: kin.ChainParams = field(default_factory=kin.ChainParams)
+    tissue_scale: float = 1.0
+    jaw_compliance_mm_per_N: float = 0.0
+    backlash_deg: float = 0.0
+    friction_coulomb_N: float = 0.0
+    friction_load_coefficient: float = 0.0
+    friction_viscous_N_s_per_mm: float = 0.0
+    friction_velocity_threshold_mm_per_s: float = 2.0
+    prony_g: tuple[float, ...] = ()
+    prony_tau_s: tuple[float, ...] = ()
+
+    def __post_init__(self) -> None:
+        _check_material(self)
+        _check_scalars(self)
+        _normalise_prony(self)
+        _check_prony(self)
+        _check_sampling(self)
+
+    @property
+    def chain_params(self) -> kin.ChainParams:
+        """The linkage with this controller's spring rate."""
+        return replace(self.chain, spring_k_N_per_mm=self.spring_k_N_per_mm)
+
+    @property
+    def contact_width_mm(self) -> float:
+        """Contact width of the flattened tube, ``pi (D - t) / 2`` (mm)."""
+        return 0.5 * math.pi * (self.diameter_mm - self.thickness_mm)
+
+    @property
+    def coupling_effective_N_per_mm(self) -> float:
+        """Coupling in series with the jaw compliance, ``1 / (1/k_c + C)`` (N/mm; k_c at C = 0)."""
+        kc, c = self.coupling_stiffness_N_per_mm, self.jaw_compliance_mm_per_N
+        return kc if c == 0 else 1.0 / (1.0 / kc + c)
+
+    @property
+    def friction_rendered(self) -> bool:
+        """Whether any friction term is on."""
+        return (
+            self.friction_coulomb_N > 0
+            or self.friction_load_coefficient > 0
+            or self.friction_viscous_N_s_per_mm > 0
+        )
+
+
+def _check_material(p: ControllerParams) -> None:
+    """The material must be one of the FE materials."""
+    if p.material not in MATERIAL_NAMES:
+        raise ValueError(f"material {p.material!r} unknown; valid: {', '.join(MATERIAL_NAMES)}")
+
+
+def _check_scalars(p: ControllerParams) -> None:
+    """Positive, non-negative and effect fields, in the order of the field groups."""
+    for name in _POSITIVE_FIELDS:
+        v = getattr(p, name)
+        if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
+            raise ValueError(f"controller parameter {name} must be finite and > 0, got {v!r}")
+    for name in _NON_NEGATIVE_RATES:
+        v = getattr(p, name)
+        if not (math.isfinite(v) and v >= 0):
+            raise ValueError(f"controller parameter {name} must be finite and >= 0, got {v!r}")
+    for name in _NON_NEGATIVE_EFFECTS:
+        v = getattr(p, name)
+        if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
+            raise ValueError(f"controller parameter {name} must be finite and >= 0, got {v!r}")
+
+
+def _normalise_prony(p: ControllerParams) -> None:
+    """``prony_g`` and ``prony_tau_s`` must be lists of numbers; stored as tuples of float."""
+    for name in _PRONY_FIELDS:
+        v = getattr(p, name)
+        if isinstance(v, str) or not isinstance(v, tuple | list):
+            raise ValueError(f"controller parameter {name} must be a list of numbers, got {v!r}")
+        if not all(isinstance(x, int | float) and not isinstance(x, bool) for x in v):
+            raise ValueError(f"controller parameter {name} must hold numbers, got {v!r}")
+        object.__setattr__(p, name, tuple(float(x) for x in v))
+
+
+def _check_prony(p: ControllerParams) -> None:
+    """Matching lengths, at most :data:`MAX_PRONY_TERMS`, ``g_i >= 0`` and ``tau_i > 0`` (s)."""
+    if len(p.prony_g) != len(p.prony_tau_s):
+        raise ValueError(
+            f"controller parameters prony_g ({len(p.prony_g)} terms) and prony_tau_s "
+            f"({len(p.prony_tau_s)} terms) must have the same length"
+        )
+    if len(p.prony_g) > MAX_PRONY_TERMS:
+        raise ValueError(
+            f"controller parameter prony_g: at most {MAX_PRONY_TERMS} Prony terms, got "
+            f"{len(p.prony_g)}"
+        )
+    for i, (g, tau) in enumerate(zip(p.prony_g, p.prony_tau_s)):
+        if not (math.isfinite(g) and g >= 0):
+            raise ValueError(
+                f"controller parameter prony_g[{i}] must be finite and >= 0, got {g!r}"
+            )
+        if not (math.isfinite(tau) and tau > 0):
+            raise ValueError(
+                f"controller parameter prony_tau_s[{i}] must be finite and > 0 s, got {tau!r}"
+            )
+
+
+def _check_sampling(p: ControllerParams) -> None:
+    """Encoder counts >= 0 and the velocity cutoff below the Nyquist frequency (Hz)."""
+    if int(p.encoder_counts_per_rev) < 0:
+        raise ValueError("controller parameter encoder_counts_per_rev must be >= 0")
+    if p.velocity_cutoff_Hz >= 0.5 / p.sample_time_s:
+        raise ValueError(
+            f"velocity_cutoff_Hz={p.velocity_cutoff_Hz} must be below the Nyquist "
+            f"frequency {0.5 / p.sample_time_s:g} Hz of sample_time_s={p.sample_time_s}"
+        )
+
+
+# ----------------------------------------------------------------------------------------------
+# dict and JSON file form
+# ----------------------------------------------------------------------------------------------
+
+
+def params_to_dict(params: ControllerParams) -> dict[str, Any]:
+    """JSON-ready dict of the parameters (``chain`` nested), with a format version."""
+    d = {f.name: getattr(params, f.name) for f in fields(params) if f.name != "chain"}
+    for name in ("prony_g", "prony_tau_s"):
+        d[name] = list(d[name])
+    d["chain"] = {f.name: getattr(params.chain, f.name) for f in fields(params.chain) if f.init}
+    d["format_version"] = CONTROLLER_FILE_VERSION
+    return d
+
+
+def params_from_dict(d: dict[str, Any], source: str = "controller parameters") -> ControllerParams:
+    """Inverse of :func:`params_to_dict`; unknown keys and bad values name ``source``."""
+    d = dict(d)
+    version = d.pop("format_version", CONTROLLER_FILE_VERSION)
+    if version != CONTROLLER_FILE_VERSION:
+        raise ValueError(
+            f"{source}: format_version {version!r}, expected {CONTROLLER_FILE_VERSION}"
+        )
+    d.pop("tuning", None)  # tuning report stored alongside by grasprom tune
+    chain = d.pop("chain", None)
+    known = {f for f in ControllerParams.__dataclass_fields__}
+    unknown = sorted(set(d) - known)
+    if unknown:
+        raise ValueError(f"{source}: unknown key(s) {', '.join(unknown)}")
+    try:
+        if chain is not None:
+            d["chain"] = kin.ChainParams(**chain)
+        return ControllerParams(**d)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{source}: {exc}") from None
+
+
+def load_params(path: str | os.PathLike[str]) -> ControllerParams:
+    """Read controller parameters from a JSON file (as written by ``grasprom tune``)."""
+    p = Path(path)
+    try:
+        d = json.loads(p.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ValueError(f"{p}: cannot read controller parameters ({exc})") from None
+    if not isinstance(d, dict):
+        raise ValueError(f"{p}: expected a JSON object")
+    return params_from_dict(d, source=str(p))
+
+
+def save_params(
+    params: ControllerParams, path: str | os.PathLike[str], extra: dict[str, Any] | None = None
+) -> None:
+    """Write controller parameters (and optional ``extra`` keys, e.g. ``tuning``) as JSON."""
+    p = Path(path)
+    d = params_to_dict(params)
+    if extra:
+        d.update(extra)
+    fd, tmp = tempfile.mkstemp(dir=p.parent if str(p.parent) else ".", suffix=".tmp")
+    with os.fdopen(fd, "w") as fh:
+        json.dump(d, fh, indent=2)
+    os.replace(tmp, p)

@@ -1,0 +1,146 @@
+"""Plots of a tuning (:func:`plot_tuning`): rendered stiffness, Z-width, rendered impedance.
+
+Uses the object-oriented matplotlib API (:class:`matplotlib.figure.Figure` on an Agg canvas):
+the caller's backend and pyplot state are untouched.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from grasprom.control.passivity import zwidth_boundary
+from grasprom.control.stiffness import virtual_damping_Nms_per_rad
+from grasprom.control.tuning import TuningResult
+
+if TYPE_CHECKING:  # matplotlib is imported when plotting
+    from matplotlib.figure import Figure
+
+__all__ = ["plot_tuning"]
+
+
+def plot_tuning(result: TuningResult, out_dir: str | Path) -> dict[str, Path]:
+    """Write ``stiffness_vs_theta.png``, ``zwidth.png`` and ``bode_impedance.png``.
+
+    Returns
+    -------
+    dict of str to Path
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    return {
+        "stiffness": _plot_stiffness(result, out / "stiffness_vs_theta.png"),
+        "zwidth": _plot_zwidth(result, out / "zwidth.png"),
+        "bode": _plot_bode(result, out / "bode_impedance.png"),
+    }
+
+
+def _figure(figsize: tuple[float, float]) -> Figure:
+    """A figure on its own Agg canvas (no pyplot, no backend switch)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _plot_stiffness(result: TuningResult, path: Path) -> Path:
+    """Rendered and raw-tissue stiffness (N m/rad) vs theta (deg), one panel per material."""
+    import matplotlib
+
+    k_pass = result.summary["passive_stiffness_Nm_per_rad"]
+    mats = sorted({o.material for o in result.points})
+    fig = _figure((5.0 * len(mats), 4.2))
+    for j, m in enumerate(mats):
+        ax = fig.add_subplot(1, len(mats), j + 1)
+        ops = [o for o in result.points if o.material == m]
+        cmap = matplotlib.colormaps["viridis"]
+        for n_, o in enumerate(ops):
+            col = cmap(n_ / max(len(ops) - 1, 1))
+            ax.semilogy(
+                o.theta_deg,
+                np.maximum(o.K_Nm_per_rad, 1e-3),
+                color=col,
+                lw=1.2,
+                label=f"t={o.thickness_mm:g}" if n_ in (0, len(ops) - 1) else None,
+            )
+            ax.semilogy(
+                o.theta_deg, np.maximum(o.K_raw_Nm_per_rad, 1e-3), color=col, lw=0.6, ls=":"
+            )
+        ax.axhline(k_pass, color="C3", lw=1.5, label="passive bound")
+        ax.set_title(f"{m}: rendered K (solid), raw tissue (dotted)", fontsize=9)
+        ax.set_xlabel(r"handle angle $\theta$ (deg)")
+        ax.set_ylabel("K at handle pivot (N m/rad)")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    return path
+
+
+def _plot_zwidth(result: TuningResult, path: Path) -> Path:
+    """Z-width (passive K over B, N m/rad vs N m s/rad) with the operating points."""
+    p, dev = result.params, result.device
+    T, B, fc = p.sample_time_s, virtual_damping_Nms_per_rad(p), p.velocity_cutoff_Hz
+    bmax = max(4.0 * B, 2.0 * dev.damping_Nms_per_rad)
+    Bs, Ks = zwidth_boundary(dev.damping_Nms_per_rad, T, fc, dev.delay_samples, bmax)
+    _, K0 = zwidth_boundary(dev.damping_Nms_per_rad, T, None, 0, bmax)
+    fig = _figure((6.0, 4.4))
+    ax = fig.add_subplot(1, 1, 1)
+    ax.fill_between(
+        Bs,
+        0,
+        Ks,
+        color="C2",
+        alpha=0.25,
+        label=f"passive (delay {dev.delay_samples}, cutoff {fc:g} Hz)",
+    )
+    ax.plot(Bs, K0, "k--", lw=1, label="Colgate b > KT/2 + |B| (no delay)")
+    allK = np.concatenate([o.K_Nm_per_rad for o in result.points])
+    ax.plot(np.full_like(allK, B), allK, "C0.", ms=2, label="operating points (chosen B)")
+    ax.set_xlabel("virtual damping B (N m s/rad)")
+    ax.set_ylabel("rendered stiffness K (N m/rad)")
+    ax.set_title("Z-width at the handle pivot", fontsize=10)
+    ax.set_ylim(0, 1.2 * max(float(np.max(Ks)), float(np.max(K0[:1])), float(np.max(allK))))
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    return path
+
+
+def _plot_bode(result: TuningResult, path: Path) -> Path:
+    """Bode plot of the rendered impedance ``Z = tau / omega`` at the stiffest point."""
+    p, dev = result.params, result.device
+    T, B, fc = p.sample_time_s, virtual_damping_Nms_per_rad(p), p.velocity_cutoff_Hz
+    kmax = result.summary["max_rendered_K_Nm_per_rad"]
+    w = np.logspace(0, math.log10(math.pi / T), 400)
+    zi = np.exp(-1j * w * T)
+    a = math.exp(-2 * math.pi * fc * T)
+    H = zi**dev.delay_samples * (kmax + B * (1 - a) * (1 - zi) / (T * (1 - a * zi)))
+    Z = H / (1j * w)
+    Zc = kmax / (1j * w) + B
+    fig = _figure((6.0, 5.0))
+    ax1 = fig.add_subplot(2, 1, 1)
+    ax2 = fig.add_subplot(2, 1, 2, sharex=ax1)
+    f = w / (2 * math.pi)
+    ax1.loglog(f, np.abs(Z), label="sampled (ZOH, delay, filter)")
+    ax1.loglog(f, np.abs(Zc), "--", label="ideal K/s + B")
+    ax1.set_ylabel("|Z| (N m s/rad)")
+    ax1.set_title(f"Rendered impedance at K = {kmax:.3g} N m/rad, B = {B:.3g}", fontsize=10)
+    ax1.legend(fontsize=7)
+    ax1.grid(True, which="both", alpha=0.3)
+    ax2.semilogx(f, np.degrees(np.angle(Z)))
+    ax2.semilogx(f, np.degrees(np.angle(Zc)), "--")
+    ax2.axhline(-90, color="0.6", lw=0.8)
+    ax2.axhline(90, color="0.6", lw=0.8)
+    ax2.set_ylabel("phase (deg)")
+    ax2.set_xlabel("frequency (Hz)")
+    ax2.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    return path

@@ -1,0 +1,312 @@
+r"""The controller linearised along the handle angle: rendered stiffness and static torque.
+
+The handle is modelled about its pivot (angle ``theta``, rad; closing = ``theta`` decreasing).
+The device torque on the handle in the opening direction is ``tau = Fi L3`` (N m); the controller
+renders, linearised at an operating point, ``tau = tau0 - K (theta - theta0) - B v_f`` with
+
+* ``K(theta) = -L3 dFi/dtheta`` (N m/rad), the **rendered stiffness** through the chain and the
+  virtual coupling: the jaw sees ``k_eff = k_c k_t / (k_c + k_t)`` (``k_t`` the surrogate
+  stiffness at the proxy gap), so
+  ``K = 1e-3 [g'^2 k_eff - Fg g'' + k u'^2 + F_s u'']`` (``g'`` mm/rad, ``k_eff`` N/mm) from
+  :func:`grasprom.chain.kinematics.dhandle_force_dtheta_N_per_rad`;
+* ``B`` the virtual damping (N m s/rad) on the velocity ``v_f``: backward difference of the
+  encoder angle, first-order low-pass ``a = exp(-2 pi f_c T)``;
+* the torque computed from sample ``k`` is held (zero-order hold) and applied ``delay`` samples
+  later (one-sample computation delay by default).
+
+:func:`rendered_stiffness` gives ``K`` along ``theta`` for one material and thickness
+(:class:`OperatingPoints`), :func:`operating_points` over the whole grid and
+:func:`stiffest_point` the largest of them; :func:`static_handle_torque_Nm` is the ideal static
+field.  Rendered instrument effects enter through :func:`prony_stiffness_factor` (on ``k_eff``)
+and :func:`virtual_damping_Nms_per_rad` (on ``B``); see :mod:`grasprom.control.tuning`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import NamedTuple
+
+import numpy as np
+
+from grasprom.chain import kinematics as kin
+from grasprom.control.params import ControllerParams
+from grasprom.surrogate import Surrogate
+
+__all__ = [
+    "OperatingPoints",
+    "StiffestPoint",
+    "operating_points",
+    "prony_stiffness_factor",
+    "rendered_stiffness",
+    "static_handle_torque_Nm",
+    "stiffest_point",
+    "virtual_damping_Nms_per_rad",
+]
+
+
+def prony_stiffness_factor(params: ControllerParams) -> float:
+    """Instantaneous over relaxed jaw stiffness of the rendered Prony series (1).
+
+    ``1 + sum g_i 2 / (1 + a_i)`` with ``a_i = exp(-T / tau_i)``: the gain of the discrete
+    filter ``Fg -> Fg + sum g_i h_i`` of
+    :meth:`~grasprom.control.impedance.ImpedanceController.step` at the Nyquist frequency,
+    its largest over frequency (``1 + sum g_i`` to ``O(T / tau_i)``); 1 without Prony terms.
+
+    Parameters
+    ----------
+    params : ControllerParams
+        ``prony_g`` (1), ``prony_tau_s`` (s) and ``sample_time_s`` (s).
+
+    Returns
+    -------
+    float
+    """
+    f = 1.0
+    for g, tau in zip(params.prony_g, params.prony_tau_s):
+        f += g * 2.0 / (1.0 + math.exp(-params.sample_time_s / tau))
+    return f
+
+
+def virtual_damping_Nms_per_rad(params: ControllerParams) -> float:
+    """Total virtual damping on the filtered velocity at the handle pivot, N m s/rad.
+
+    ``B + b_v L3^2 1e-3``: the controller's damping ``B`` plus the rendered viscous friction
+    ``b_v`` (N s/mm at the finger, ``L3`` in mm); ``B`` without viscous friction.
+
+    Parameters
+    ----------
+    params : ControllerParams
+
+    Returns
+    -------
+    float
+    """
+    bv = params.friction_viscous_N_s_per_mm
+    if bv == 0:
+        return params.damping_Nms_per_rad
+    L3 = params.chain_params.L3_mm
+    return params.damping_Nms_per_rad + bv * L3 * L3 * 1e-3
+
+
+def _proxy_gap(
+    s: Surrogate,
+    gap: np.ndarray,
+    t: float,
+    material: str,
+    kc: float,
+    iters: int = 60,
+    scale: float = 1.0,
+) -> np.ndarray:
+    """Converged proxy gap ``g_p >= g`` solving ``k_c (g_p - g) = scale F(g_p)`` (vectorised)."""
+    f0 = scale * np.asarray(s.force(gap, t, material), dtype=float)
+    lo = gap.copy()
+    hi = gap + f0 / kc
+    gp = hi.copy()
+    for _ in range(iters):
+        f = scale * np.asarray(s.force(gp, t, material), dtype=float)
+        k = scale * np.asarray(s.stiffness(gp, t, material), dtype=float)
+        r = kc * (gp - gap) - f  # increasing in gp
+        lo = np.where(r < 0, gp, lo)
+        hi = np.where(r >= 0, gp, hi)
+        if np.all((np.abs(r) <= 1e-9 * np.maximum(1.0, f)) | (hi - lo <= 1e-12)):
+            break
+        newton = gp - r / (kc + k)
+        gp = np.where((newton >= lo) & (newton <= hi), newton, 0.5 * (lo + hi))
+    return np.where(f0 > 0, gp, gap)
+
+
+@dataclass(frozen=True)
+class OperatingPoints:
+    """Operating points of one material and thickness along ``theta`` (arrays over theta).
+
+    Attributes
+    ----------
+    material : str
+    thickness_mm : float
+    theta_deg, gap_mm, proxy_gap_mm : ndarray
+        Handle angle (deg), kinematic gap (mm), converged proxy gap (mm).
+    force_jaw_N : ndarray
+        Rendered (relaxed) jaw force ``k_c,eff (g_p - g)``, N.
+    tissue_stiffness_N_per_mm : ndarray
+        Surrogate stiffness (times ``tissue_scale``) at the kinematic gap (raw tissue), N/mm.
+    jaw_stiffness_N_per_mm : ndarray
+        Rendered instantaneous jaw stiffness
+        ``P k_c,eff k_t(g_p) / (k_c,eff + k_t(g_p))``, N/mm (``P`` the
+        :func:`prony_stiffness_factor`; ``k_c,eff = k_c`` without jaw compliance).
+    K_Nm_per_rad : ndarray
+        Rendered stiffness at the handle pivot (chain + coupling), N m/rad.
+    K_raw_Nm_per_rad : ndarray
+        Stiffness the raw tissue (no coupling, no jaw compliance; scale and Prony factor
+        included) would need at the handle pivot, N m/rad.
+    """
+
+    material: str
+    thickness_mm: float
+    theta_deg: np.ndarray
+    gap_mm: np.ndarray
+    proxy_gap_mm: np.ndarray
+    force_jaw_N: np.ndarray
+    tissue_stiffness_N_per_mm: np.ndarray
+    jaw_stiffness_N_per_mm: np.ndarray
+    K_Nm_per_rad: np.ndarray
+    K_raw_Nm_per_rad: np.ndarray
+
+
+def _handle_K(
+    fg: np.ndarray,
+    kjaw: np.ndarray,
+    th: np.ndarray,
+    chain: kin.ChainParams,
+    render_spring: bool,
+) -> np.ndarray:
+    """``-L3 dFi/dtheta`` in N m/rad (spring terms removed unless ``render_spring``)."""
+    dfi = np.asarray(kin.dhandle_force_dtheta_N_per_rad(fg, kjaw, th, chain), dtype=float)
+    if not render_spring:
+        dfi = dfi - np.asarray(kin.dhandle_force_dtheta_N_per_rad(0.0, 0.0, th, chain))
+    return -dfi * chain.L3_mm * 1e-3
+
+
+def rendered_stiffness(
+    s: Surrogate,
+    params: ControllerParams,
+    theta_deg: Sequence[float] | np.ndarray | None = None,
+    *,
+    n_theta: int = 221,
+) -> OperatingPoints:
+    """Rendered handle-pivot stiffness along ``theta`` for ``params.material``/``thickness_mm``.
+
+    Parameters
+    ----------
+    s : Surrogate
+        Tissue force table.
+    params : ControllerParams
+        Controller parameters (coupling stiffness, chain, spring, material, thickness).
+    theta_deg : array_like, optional
+        Handle angles, deg (default ``n_theta`` points over the chain's range).
+    n_theta : int
+        Number of default samples.
+
+    Returns
+    -------
+    OperatingPoints
+    """
+    chain = params.chain_params
+    if theta_deg is None:
+        lo, hi = kin.theta_range_deg(chain)
+        theta_deg = np.linspace(lo, hi, n_theta)
+    th = np.asarray(theta_deg, dtype=float)
+    t, m, kc = params.thickness_mm, params.material, params.coupling_effective_N_per_mm
+    sc = params.tissue_scale
+    pf = prony_stiffness_factor(params)
+    g = np.asarray(kin.gap_mm(th, chain), dtype=float)
+    f_raw = sc * np.asarray(s.force(g, t, m), dtype=float)
+    kt_raw = sc * np.asarray(s.stiffness(g, t, m), dtype=float)
+    gp = _proxy_gap(s, g, t, m, kc, scale=sc)
+    kt_p = sc * np.asarray(s.stiffness(gp, t, m), dtype=float)
+    contact = f_raw > 0
+    fg = np.where(contact, kc * (gp - g), 0.0)
+    kjaw = np.where(contact, pf * (kc * kt_p / (kc + kt_p)), 0.0)
+    return OperatingPoints(
+        material=m,
+        thickness_mm=float(t),
+        theta_deg=th,
+        gap_mm=g,
+        proxy_gap_mm=gp,
+        force_jaw_N=fg,
+        tissue_stiffness_N_per_mm=kt_raw,
+        jaw_stiffness_N_per_mm=kjaw,
+        K_Nm_per_rad=_handle_K(fg, kjaw, th, chain, params.render_spring),
+        K_raw_Nm_per_rad=_handle_K(f_raw, pf * kt_raw, th, chain, params.render_spring),
+    )
+
+
+def static_handle_torque_Nm(
+    s: Surrogate, params: ControllerParams, theta_rad: np.ndarray
+) -> np.ndarray:
+    """Static device torque at the handle pivot ``Fi L3`` (N m, opening) with converged proxy.
+
+    The ideal (continuous, undamped) field the controller approximates; no saturation.  With
+    rendered instrument effects: tissue scale and jaw compliance included, the Prony series
+    relaxed, no friction, no backlash (the chain angle = the handle angle).
+    """
+    chain = params.chain_params
+    th = np.degrees(
+        np.clip(np.asarray(theta_rad, dtype=float), *np.radians(kin.theta_range_deg(chain)))
+    )
+    g = np.asarray(kin.gap_mm(th, chain), dtype=float)
+    kc = params.coupling_effective_N_per_mm
+    gp = _proxy_gap(s, g, params.thickness_mm, params.material, kc, scale=params.tissue_scale)
+    fg = kc * (gp - g)
+    fi = np.asarray(kin.handle_force_N(fg, th, chain), dtype=float)
+    if not params.render_spring:
+        fi = fi - np.asarray(kin.spring_handle_force_N(th, chain), dtype=float)
+    return fi * chain.L3_mm * 1e-3
+
+
+def operating_points(
+    s: Surrogate,
+    params: ControllerParams,
+    thicknesses: Sequence[float] | None = None,
+    materials: Sequence[str] | None = None,
+    n_theta: int = 221,
+) -> list[OperatingPoints]:
+    """Operating points over theta x thickness x material (default: the surrogate's grids)."""
+    mats = list(materials) if materials else list(s.materials)
+    out = []
+    for m in mats:
+        ts = list(thicknesses) if thicknesses else list(s.thicknesses(m))
+        lo, hi = s.thickness_range(m)
+        for t in ts:
+            if not lo - 1e-9 <= t <= hi + 1e-9:
+                raise ValueError(
+                    f"thickness {t} mm outside the surrogate's range [{lo:g}, {hi:g}] mm "
+                    f"for material {m!r}"
+                )
+            p = replace(params, material=m, thickness_mm=float(t))
+            out.append(rendered_stiffness(s, p, n_theta=n_theta))
+    return out
+
+
+class StiffestPoint(NamedTuple):
+    """Largest rendered stiffness over a set of :class:`OperatingPoints` (:func:`stiffest_point`).
+
+    Attributes
+    ----------
+    K_max_Nm_per_rad : float
+        Largest rendered stiffness at the handle pivot, N m/rad.
+    K_min_Nm_per_rad : float
+        Smallest rendered stiffness, N m/rad (the other end of the passivity check).
+    point : OperatingPoints
+        The material/thickness holding the largest.
+    index : int
+        Its index along ``point.theta_deg``.
+    """
+
+    K_max_Nm_per_rad: float
+    K_min_Nm_per_rad: float
+    point: OperatingPoints
+    index: int
+
+
+def stiffest_point(points: list[OperatingPoints]) -> StiffestPoint:
+    """Largest (and smallest) rendered stiffness over ``points`` and where the largest is.
+
+    Parameters
+    ----------
+    points : list of OperatingPoints
+
+    Returns
+    -------
+    StiffestPoint
+        Unpacks as ``(K_max, K_min, point, index)``; the first point of the largest wins a tie.
+    """
+    best = (-math.inf, math.inf, points[0], 0)
+    kmin = math.inf
+    for op in points:
+        i = int(np.argmax(op.K_Nm_per_rad))
+        kmin = min(kmin, float(np.min(op.K_Nm_per_rad)))
+        if op.K_Nm_per_rad[i] > best[0]:
+            best = (float(op.K_Nm_per_rad[i]), kmin, op, i)
+    return StiffestPoint(best[0], kmin, best[2], best[3])

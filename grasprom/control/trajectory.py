@@ -1,0 +1,170 @@
+"""Handle-angle trajectories through the controller (``grasprom simulate``).
+
+:func:`validate_trajectory` checks a ``time_s, theta_deg`` table, :func:`simulate` runs the
+:class:`~grasprom.control.impedance.ImpedanceController` on it at the controller rate (the
+reference for every export) and :func:`grasp_trajectory` makes a grasp-hold-release test input.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from grasprom.chain import kinematics as kin
+from grasprom.control.impedance import ImpedanceController, StepOutput
+from grasprom.control.params import ControllerParams
+from grasprom.surrogate import Surrogate
+
+if TYPE_CHECKING:  # pandas is imported when used: ``import grasprom.control`` stays light
+    import pandas as pd
+
+__all__ = [
+    "SIMULATION_COLUMNS",
+    "TRAJECTORY_COLUMNS",
+    "grasp_trajectory",
+    "simulate",
+    "validate_trajectory",
+]
+
+TRAJECTORY_COLUMNS = ("time_s", "theta_deg")
+"""Columns of a handle-angle trajectory: time (s), handle angle (deg)."""
+
+SIMULATION_COLUMNS = (
+    "time_s",
+    "theta_deg",
+    "gap_mm",
+    "force_jaw_N",
+    "force_handle_N",
+    "force_handle_spring_N",
+    "torque_Nm",
+    "contact",
+    "tissue_warning",
+    "force_tissue_N",
+    "proxy_gap_mm",
+    "velocity_rad_per_s",
+    "coupling_active",
+    "saturated",
+    "theta_clamped",
+    "theta_chain_deg",
+    "force_handle_friction_N",
+)
+"""Columns of :func:`simulate`: ``time_s`` and the :class:`StepOutput` fields (units in names)."""
+
+
+def validate_trajectory(
+    df: pd.DataFrame, params: ControllerParams, source: str = "trajectory"
+) -> tuple[np.ndarray, np.ndarray]:
+    """Check a trajectory table (``time_s``, ``theta_deg``); errors name the row and column.
+
+    Returns float arrays ``(time_s, theta_deg)``.
+    """
+    import pandas as pd
+
+    missing = [c for c in TRAJECTORY_COLUMNS if c not in df.columns]
+    if missing:
+        raise ValueError(
+            f"{source}: missing column(s) {', '.join(missing)} (need time_s, theta_deg)"
+        )
+    if len(df) < 2:
+        raise ValueError(f"{source}: needs at least 2 rows, got {len(df)}")
+    out = []
+    for col in TRAJECTORY_COLUMNS:
+        vals = np.asarray(pd.to_numeric(df[col], errors="coerce"), dtype=float)
+        bad = np.flatnonzero(~np.isfinite(vals))
+        if bad.size:
+            raise ValueError(
+                f"{source}: column {col!r}, row {int(bad[0]) + 1}: not a finite number "
+                f"({df[col].iloc[bad[0]]!r})"
+            )
+        out.append(vals)
+    t, th = out
+    dt = np.diff(t)
+    bad = np.flatnonzero(dt <= 0)
+    if bad.size:
+        raise ValueError(
+            f"{source}: column 'time_s' must increase strictly; row {int(bad[0]) + 2} "
+            f"({t[bad[0] + 1]!r} s) does not follow row {int(bad[0]) + 1} ({t[bad[0]]!r} s)"
+        )
+    lo, hi = kin.theta_range_deg(params.chain_params)
+    bad = np.flatnonzero((th < lo - 1e-9) | (th > hi + 1e-9))
+    if bad.size:
+        raise ValueError(
+            f"{source}: column 'theta_deg', row {int(bad[0]) + 1}: {th[bad[0]]!r} deg outside "
+            f"the chain's range [{lo:g}, {hi:g}] deg"
+        )
+    if np.ptp(th) > 0 and np.abs(th).max() <= 0.4:
+        warnings.warn(
+            f"{source}: theta_deg stays within 0.4 deg -- is it in radians? "
+            "(the column must be in degrees)",
+            stacklevel=2,
+        )
+    return t, th
+
+
+def simulate(
+    trajectory: pd.DataFrame,
+    params: ControllerParams,
+    surrogate: Surrogate,
+    source: str = "trajectory",
+) -> pd.DataFrame:
+    """Run the controller on a handle-angle trajectory (the reference for all exports).
+
+    The controller runs at its own rate ``1 / sample_time_s`` from the first to the last
+    trajectory time; the angle is interpolated linearly between trajectory rows (a trajectory
+    sampled at the controller rate is used as is).
+
+    Parameters
+    ----------
+    trajectory : pandas.DataFrame
+        Columns ``time_s`` (s, strictly increasing) and ``theta_deg`` (deg, in the chain range).
+    params : ControllerParams
+    surrogate : Surrogate
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per controller step, columns :data:`SIMULATION_COLUMNS`.
+    """
+    import pandas as pd
+
+    t, th = validate_trajectory(trajectory, params, source)
+    T = params.sample_time_s
+    n = int(math.floor((t[-1] - t[0]) / T + 1e-9)) + 1
+    ticks = t[0] + T * np.arange(n)
+    theta = np.interp(ticks, t, th)
+    ctl = ImpedanceController(params, surrogate)
+    rows = [ctl.step(math.radians(x)) for x in theta]
+    out = pd.DataFrame(rows, columns=StepOutput._fields)
+    out.insert(0, "time_s", ticks)
+    return out[list(SIMULATION_COLUMNS)]
+
+
+def grasp_trajectory(
+    *,
+    close_s: float = 1.0,
+    hold_s: float = 2.0,
+    open_s: float = 1.0,
+    theta_open_deg: float = 22.0,
+    theta_closed_deg: float = 0.0,
+    sample_time_s: float = 1e-3,
+) -> pd.DataFrame:
+    """A grasp-hold-release handle trajectory (cosine ramps), columns ``time_s, theta_deg``."""
+    import pandas as pd
+
+    def ramp(a: float, b: float, dur: float) -> np.ndarray:
+        m = max(int(round(dur / sample_time_s)), 1)
+        s = np.arange(m) / m
+        return a + (b - a) * 0.5 * (1 - np.cos(np.pi * s))
+
+    th = np.concatenate(
+        [
+            ramp(theta_open_deg, theta_closed_deg, close_s),
+            np.full(max(int(round(hold_s / sample_time_s)), 1), theta_closed_deg),
+            ramp(theta_closed_deg, theta_open_deg, open_s),
+            [theta_open_deg],
+        ]
+    )
+    return pd.DataFrame({"time_s": sample_time_s * np.arange(th.size), "theta_deg": th})
