@@ -93,14 +93,17 @@ __all__ = [
     "beta_deg",
     "dgap_dtheta_mm_per_rad",
     "d2gap_dtheta2_mm_per_rad2",
+    "dxc_dtheta",
     "dhandle_force_dtheta_N_per_rad",
     "gap_mm",
     "handle_force_N",
     "jaw_force_N",
     "linkage_points_mm",
+    "linkage_state",
     "plot_transmission",
     "seed_jaw_force_N",
     "seed_transmission_ratio",
+    "slider_x_mm",
     "spring_dx_mm",
     "spring_energy_Nmm",
     "spring_force_N",
@@ -108,6 +111,7 @@ __all__ = [
     "theta_from_gap_deg",
     "theta_range_deg",
     "transmission_ratio",
+    "xc_mm",
 ]
 
 #: Table 1 of seed 003 (mm, deg).  ``beta_initial = 19 deg`` is not reachable with eq (3) and
@@ -230,6 +234,12 @@ class ChainParams:
         return self._c
 
     def __post_init__(self) -> None:
+        self._check_fields()
+        self._check_ranges()
+        object.__setattr__(self, "_c", _linkage_constants(self))
+
+    def _check_fields(self) -> None:
+        """Each field on its own: finite numbers, signs, the slider branch (``ValueError``)."""
         for name in (
             "L1_mm",
             "L2_mm",
@@ -257,6 +267,9 @@ class ChainParams:
             raise ValueError(
                 f"ChainParams.slider_side must be 'behind' or 'beyond', got {self.slider_side!r}"
             )
+
+    def _check_ranges(self) -> None:
+        """Fields against each other: offset, handle range, gaps and jaw arm (``ValueError``)."""
         if not abs(self.offset_d_mm) < self.L1_mm:
             raise ValueError(
                 f"ChainParams.offset_d_mm must satisfy |d| < L1_mm = {self.L1_mm}, "
@@ -287,54 +300,6 @@ class ChainParams:
                 f"ChainParams.n_mm ({self.n_mm}) must exceed gap_open_mm - gap_closed_mm "
                 f"({self.gap_open_mm - self.gap_closed_mm}): the jaw cannot open that far"
             )
-        d = float(self.offset_d_mm)
-        h = math.sqrt(self.L1_mm**2 - d**2)
-        side = -1.0 if self.slider_side == "behind" else 1.0
-        th_lo = math.radians(self.theta_closed_deg)
-        th_hi = math.radians(self.theta_open_deg)
-        # assembly and monotonicity over the whole range (dense sampling)
-        th = np.linspace(th_lo, th_hi, _N_CHECK)
-        yb = h * np.sin(th) + d * np.cos(th)
-        sb = (yb - d) / self.L2_mm
-        if np.max(np.abs(sb)) >= 1.0 - 1e-9:
-            i = int(np.argmax(np.abs(sb)))
-            raise ValueError(
-                f"ChainParams: the link L2_mm = {self.L2_mm} cannot reach the rod axis at "
-                f"theta = {math.degrees(th[i]):.3f} deg (|sin beta| >= 1); increase L2_mm or "
-                "change offset_d_mm / L1_mm"
-            )
-        xc = _xc(th, self.L2_mm, d, h, side)
-        dxc = _dxc(th, self.L2_mm, d, h, side)[0]
-        sgn = 1.0 if xc[-1] > xc[0] else -1.0
-        bad = np.nonzero(dxc * sgn <= 1e-9 * self.L1_mm)[0]
-        if bad.size:
-            flips = np.nonzero(np.sign(dxc[:-1]) != np.sign(dxc[1:]))[0]
-            i = int(flips[0]) if flips.size else int(bad[0])
-            if flips.size:  # linear interpolation of the zero of dx_C/dtheta
-                th_dead = th[i] - dxc[i] * (th[i + 1] - th[i]) / (dxc[i + 1] - dxc[i])
-            else:
-                th_dead = th[i]
-            raise ValueError(
-                f"ChainParams: with offset_d_mm = {d} and slider_side = {self.slider_side!r} "
-                f"the linkage passes a dead centre near theta = {math.degrees(th_dead):.2f} "
-                f"deg (dx_C/dtheta changes sign in [{self.theta_closed_deg}, "
-                f"{self.theta_open_deg}] deg); the jaw gap would not be monotone. Choose another "
-                "offset_d_mm or slider_side"
-            )
-        xc_closed = float(_xc(th_lo, self.L2_mm, d, h, side))
-        xc_open = float(_xc(th_hi, self.L2_mm, d, h, side))
-        consts = LinkageConstants(
-            h=h,
-            side=side,
-            xc_closed=xc_closed,
-            xc_open=xc_open,
-            stroke_sign=sgn,
-            u_max=abs(xc_open - xc_closed),
-            gap_per_xc=(self.gap_open_mm - self.gap_closed_mm) / (xc_open - xc_closed),
-            th_lo=th_lo,
-            th_hi=th_hi,
-        )
-        object.__setattr__(self, "_c", consts)
 
     # -- derived quantities -------------------------------------------------------------------
     @property
@@ -367,17 +332,107 @@ class ChainParams:
         return float(theta_from_gap_deg(self.tube_diameter_mm, self))
 
 
+# -- construction of the derived constants ---------------------------------------------------
+def _linkage_constants(p: ChainParams) -> LinkageConstants:
+    """Derived constants of a field-checked parameter set, after checking that the linkage
+    assembles and moves monotonically over the whole handle range (``ValueError`` otherwise)."""
+    d = float(p.offset_d_mm)
+    h = math.sqrt(p.L1_mm**2 - d**2)
+    side = -1.0 if p.slider_side == "behind" else 1.0
+    th_lo = math.radians(p.theta_closed_deg)
+    th_hi = math.radians(p.theta_open_deg)
+    # assembly and monotonicity over the whole range (dense sampling)
+    th = np.linspace(th_lo, th_hi, _N_CHECK)
+    _check_assembly(p, th, d, h)
+    sgn = _check_monotone(p, th, d, h, side)
+    xc_closed = float(xc_mm(th_lo, p.L2_mm, d, h, side))
+    xc_open = float(xc_mm(th_hi, p.L2_mm, d, h, side))
+    return LinkageConstants(
+        h=h,
+        side=side,
+        xc_closed=xc_closed,
+        xc_open=xc_open,
+        stroke_sign=sgn,
+        u_max=abs(xc_open - xc_closed),
+        gap_per_xc=(p.gap_open_mm - p.gap_closed_mm) / (xc_open - xc_closed),
+        th_lo=th_lo,
+        th_hi=th_hi,
+    )
+
+
+def _check_assembly(p: ChainParams, th: NDArray[np.float64], d: float, h: float) -> None:
+    """``ValueError`` if the link cannot reach the rod axis at some sampled angle ``th`` (rad)."""
+    yb = h * np.sin(th) + d * np.cos(th)
+    sb = (yb - d) / p.L2_mm
+    if np.max(np.abs(sb)) >= 1.0 - 1e-9:
+        i = int(np.argmax(np.abs(sb)))
+        raise ValueError(
+            f"ChainParams: the link L2_mm = {p.L2_mm} cannot reach the rod axis at "
+            f"theta = {math.degrees(th[i]):.3f} deg (|sin beta| >= 1); increase L2_mm or "
+            "change offset_d_mm / L1_mm"
+        )
+
+
+def _check_monotone(
+    p: ChainParams, th: NDArray[np.float64], d: float, h: float, side: float
+) -> float:
+    """Stroke sign of x_C over the sampled angles ``th`` (rad); ``ValueError`` at a dead centre."""
+    xc = xc_mm(th, p.L2_mm, d, h, side)
+    dxc = dxc_dtheta(th, p.L2_mm, d, h, side)[0]
+    sgn = 1.0 if xc[-1] > xc[0] else -1.0
+    bad = np.nonzero(dxc * sgn <= 1e-9 * p.L1_mm)[0]
+    if bad.size:
+        flips = np.nonzero(np.sign(dxc[:-1]) != np.sign(dxc[1:]))[0]
+        i = int(flips[0]) if flips.size else int(bad[0])
+        if flips.size:  # linear interpolation of the zero of dx_C/dtheta
+            th_dead = th[i] - dxc[i] * (th[i + 1] - th[i]) / (dxc[i + 1] - dxc[i])
+        else:
+            th_dead = th[i]
+        raise ValueError(
+            f"ChainParams: with offset_d_mm = {d} and slider_side = {p.slider_side!r} "
+            f"the linkage passes a dead centre near theta = {math.degrees(th_dead):.2f} "
+            f"deg (dx_C/dtheta changes sign in [{p.theta_closed_deg}, "
+            f"{p.theta_open_deg}] deg); the jaw gap would not be monotone. Choose another "
+            "offset_d_mm or slider_side"
+        )
+    return sgn
+
+
 # -- geometry kernels (radians, no validation; numpy-generic so complex step works) -----------
-def _xc(th: Any, L2: float, d: float, h: float, side: float) -> Any:
-    """x coordinate of the rod end C, mm."""
+def xc_mm(th: Any, L2: float, d: float, h: float, side: float) -> Any:
+    """x coordinate of the rod end C, mm.
+
+    Parameters
+    ----------
+    th : float, ndarray or complex
+        Handle angle, rad (no range check).
+    L2, d, h : float
+        Link length ``L2_mm``, offset ``offset_d_mm`` and ``sqrt(L1^2 - d^2)``, mm
+        (:attr:`ChainParams.constants` holds ``h``).
+    side : float
+        -1 slider behind B (pivot side), +1 beyond.
+
+    Returns
+    -------
+    float, ndarray or complex
+        ``x_C``, mm.
+    """
     yb = h * np.sin(th) + d * np.cos(th)
     xb = h * np.cos(th) - d * np.sin(th)
     s = (yb - d) / L2
     return xb + side * L2 * np.sqrt(1.0 - s * s)
 
 
-def _dxc(th: Any, L2: float, d: float, h: float, side: float) -> tuple[Any, Any]:
-    """First and second derivatives of x_C with respect to theta (rad), mm/rad, mm/rad^2."""
+def dxc_dtheta(th: Any, L2: float, d: float, h: float, side: float) -> tuple[Any, Any]:
+    """First and second derivatives of x_C with respect to theta (rad), mm/rad, mm/rad^2.
+
+    Parameters as :func:`xc_mm`.
+
+    Returns
+    -------
+    tuple
+        ``(dx_C/dtheta, d2x_C/dtheta2)`` in mm/rad and mm/rad^2.
+    """
     sn, cs = np.sin(th), np.cos(th)
     yb = h * sn + d * cs
     xb = h * cs - d * sn
@@ -389,10 +444,10 @@ def _dxc(th: Any, L2: float, d: float, h: float, side: float) -> tuple[Any, Any]
     return d1, d2
 
 
-def _slider_x_mm(theta_rad: Any, p: ChainParams) -> Any:
+def slider_x_mm(theta_rad: Any, p: ChainParams) -> Any:
     """x_C(theta) in mm, radians in, no range check (accepts complex for complex-step tests)."""
     c = p._c
-    return _xc(theta_rad, p.L2_mm, p.offset_d_mm, c.h, c.side)
+    return xc_mm(theta_rad, p.L2_mm, p.offset_d_mm, c.h, c.side)
 
 
 def _linkage_state(th: Any, p: ChainParams, sin: Any, cos: Any, sqrt: Any) -> tuple[Any, ...]:
@@ -538,8 +593,8 @@ def theta_from_gap_deg(gap_mm: ArrayLike, p: ChainParams) -> FloatOrArray:
     t = c.th_lo + (g - g_lo) / (g_hi - g_lo) * (c.th_hi - c.th_lo)
     xtol = 1e-12 / abs(c.gap_per_xc)
     for _ in range(100):
-        xc = _xc(t, p.L2_mm, p.offset_d_mm, c.h, c.side)
-        d1 = _dxc(t, p.L2_mm, p.offset_d_mm, c.h, c.side)[0]
+        xc = xc_mm(t, p.L2_mm, p.offset_d_mm, c.h, c.side)
+        d1 = dxc_dtheta(t, p.L2_mm, p.offset_d_mm, c.h, c.side)[0]
         r = (xc - target) * c.stroke_sign  # increasing in t
         if np.all(np.abs(r) <= xtol):
             break
@@ -601,7 +656,7 @@ def linkage_points_mm(theta_deg: ArrayLike, p: ChainParams) -> LinkagePoints:
     h, d = p._c.h, p.offset_d_mm
     bx = h * np.cos(t) - d * np.sin(t)
     by = h * np.sin(t) + d * np.cos(t)
-    cx = _xc(t, p.L2_mm, d, h, p._c.side)
+    cx = xc_mm(t, p.L2_mm, d, h, p._c.side)
     cy = np.full_like(cx, d)
     return LinkagePoints(_out(bx), _out(by), _out(cx), _out(cy))
 

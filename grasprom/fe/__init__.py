@@ -1,6 +1,12 @@
 """Stage 1, FE sweeps: materials, the clamped-tube models, sweeps over thickness x material,
 case files and the sweep report (mm, N, MPa).
 
+Modules: ``materials`` (constitutive laws), ``model2d`` (the plane-strain clamped-tube model,
+:func:`run_case`), ``grid`` (the thickness x material grid, :func:`build_grid`), ``sweep``
+(running a grid resumably, :func:`run_sweep`), ``datafiles`` (the on-disk case and manifest
+format) with ``atomicio`` (atomic writes, JSON encoding) and ``provenance`` (versions, git
+revision, time stamps), ``report`` (summary table) and ``plots`` (force-gap figure).
+
 The names below are imported on first use (PEP 562), so ``import grasprom.fe.materials`` or
 ``from grasprom.fe import MATERIAL_NAMES`` does not pull in scikit-fem and pandas.
 """
@@ -14,25 +20,25 @@ _LAZY = {
     "CaseResult": "model2d",
     "CaseSpec": "model2d",
     "CorruptCaseError": "datafiles",
-    "KNOWN_MATERIALS": "sweep",
+    "KNOWN_MATERIALS": "grid",
     "MATERIAL_NAMES": "materials",
     "MeshSpec": "model2d",
     "SolverSettings": "model2d",
     "SweepConflictError": "sweep",
-    "SweepInputError": "sweep",
-    "atomic_write_bytes": "datafiles",
-    "build_grid": "sweep",
+    "SweepInputError": "grid",
+    "atomic_write_bytes": "atomicio",
+    "build_grid": "grid",
     "default_runner": "sweep",
     "get_material": "materials",
-    "git_revision": "datafiles",
+    "git_revision": "provenance",
     "load_sweep": "datafiles",
     "make_report": "report",
-    "package_versions": "datafiles",
-    "plot_sweep": "report",
+    "package_versions": "provenance",
+    "plot_sweep": "plots",
     "read_case": "datafiles",
     "run_case": "model2d",
     "run_sweep": "sweep",
-    "spec_defaults": "sweep",
+    "spec_defaults": "grid",
 }
 """Public name -> module of this subpackage that defines it."""
 

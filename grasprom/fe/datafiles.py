@@ -7,10 +7,10 @@ One case is two files sharing a stem (``{material}_t{thickness_mm:.2f}``, e.g. `
 * ``<stem>.json`` -- the sidecar: case parameters, status, FE record, provenance, the
   SHA-256 of the CSV bytes and of the inputs.
 
-Both are written atomically (temporary file in the same directory, then :func:`os.replace`),
-the CSV first and the JSON last, so the presence of a JSON sidecar marks a finished case.
-A failed case leaves ``<stem>.error.txt`` instead. A sweep directory also holds a
-``sweep.json`` manifest (see :func:`write_manifest`).
+Both are written atomically (temporary file in the same directory, then :func:`os.replace`;
+see :mod:`grasprom.fe.atomicio`), the CSV first and the JSON last, so the presence of a JSON
+sidecar marks a finished case. A failed case leaves ``<stem>.error.txt`` instead. A sweep
+directory also holds a ``sweep.json`` manifest (see :func:`write_manifest`).
 
 Units: lengths in mm, forces in N, stresses in MPa, times in s.
 """
@@ -18,15 +18,11 @@ Units: lengths in mm, forces in N, stresses in MPa, times in s.
 from __future__ import annotations
 
 import dataclasses
-import datetime as _dt
 import hashlib
 import json
 import math
 import os
-import platform
 import re
-import subprocess
-import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,7 +31,9 @@ from typing import Any
 import pandas as pd
 
 from grasprom import __version__
+from grasprom.fe.atomicio import atomic_write_bytes, atomic_write_json, json_default
 from grasprom.fe.model2d import COLUMN_DESCRIPTIONS, CONTRACT_COLUMNS, CaseResult, CaseSpec
+from grasprom.fe.provenance import now_iso, provenance
 
 SCHEMA_VERSION = 1
 """Version of the case sidecar and manifest layout; bump on incompatible change."""
@@ -172,22 +170,9 @@ def case_files(directory: str | os.PathLike[str], stem: str) -> CaseFiles:
     return CaseFiles(csv=d / f"{stem}.csv", json=d / f"{stem}.json")
 
 
-def _json_default(obj: Any) -> Any:
-    """Make numpy scalars/arrays, paths and dataclasses JSON-serialisable."""
-    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        return dataclasses.asdict(obj)
-    if isinstance(obj, Path):
-        return str(obj)
-    if hasattr(obj, "tolist"):  # numpy scalar or array
-        return obj.tolist()
-    if isinstance(obj, (set, frozenset)):
-        return sorted(obj)
-    raise TypeError(f"object of type {type(obj).__name__} is not JSON serialisable")
-
-
 def canonical_json(obj: Any) -> str:
     """Deterministic compact JSON (sorted keys) used for hashing."""
-    return json.dumps(obj, sort_keys=True, separators=(",", ":"), default=_json_default)
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"), default=json_default)
 
 
 def sha256_bytes(data: bytes) -> str:
@@ -211,110 +196,6 @@ def input_hash(spec: CaseSpec) -> str:
     this is what a resumed sweep compares against the finished files on disk.
     """
     return sha256_bytes(canonical_json(dataclasses.asdict(spec)).encode())
-
-
-# --------------------------------------------------------------------------- provenance
-
-
-def package_versions() -> dict[str, str | None]:
-    """Versions of grasprom, numpy, scipy, scikit-fem, pandas and Python.
-
-    Returns
-    -------
-    dict
-        ``{"grasprom": ..., "numpy": ..., "scipy": ..., "skfem": ..., "pandas": ...,
-        "python": ...}``; None for a package that cannot be imported.
-    """
-    import importlib
-
-    out: dict[str, str | None] = {"grasprom": __version__}
-    for name in ("numpy", "scipy", "skfem", "pandas"):
-        try:
-            out[name] = str(importlib.import_module(name).__version__)
-        except Exception:  # noqa: BLE001 - best effort provenance
-            out[name] = None
-    out["python"] = platform.python_version()
-    return out
-
-
-def git_revision() -> dict[str, Any]:
-    """Git revision of the repository holding the grasprom package (best effort).
-
-    Only reported when the package directory is inside a git work tree whose top level
-    holds a ``pyproject.toml`` (i.e. a source checkout, not a site-packages install).
-
-    Returns
-    -------
-    dict
-        ``{"git_revision": str | None, "git_dirty": bool | None}``.
-    """
-    pkg_dir = Path(__file__).resolve().parent
-    none: dict[str, Any] = {"git_revision": None, "git_dirty": None}
-
-    def _git(*args: str) -> str | None:
-        try:
-            p = subprocess.run(
-                ["git", "-C", str(pkg_dir), *args],
-                capture_output=True,
-                text=True,
-                timeout=10,
-                check=False,
-            )
-        except (OSError, subprocess.SubprocessError):
-            return None
-        return p.stdout.strip() if p.returncode == 0 else None
-
-    top = _git("rev-parse", "--show-toplevel")
-    if not top or not (Path(top) / "pyproject.toml").is_file():
-        return none
-    rev = _git("rev-parse", "HEAD")
-    if rev is None:
-        return none
-    status = _git("status", "--porcelain", "--untracked-files=no")
-    return {"git_revision": rev, "git_dirty": None if status is None else bool(status)}
-
-
-def provenance() -> dict[str, Any]:
-    """Versions and git revision, computed once per sweep and stored in every sidecar."""
-    return {"versions": package_versions(), **git_revision()}
-
-
-def now_iso() -> str:
-    """The current UTC time, ISO 8601 to the second (the time stamps of case files)."""
-    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
-
-
-# --------------------------------------------------------------------------- atomic writes
-
-
-def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically.
-
-    The bytes go to a temporary file in the same directory, are flushed and fsync'ed, and
-    the file is renamed over ``path`` with :func:`os.replace`; a reader (or a killed
-    writer) sees either the old file or the complete new one.
-    """
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-
-
-def atomic_write_json(path: str | os.PathLike[str], obj: Any) -> None:
-    """Atomically write ``obj`` as indented JSON (see :func:`atomic_write_bytes`)."""
-    text = json.dumps(obj, indent=2, sort_keys=False, default=_json_default, allow_nan=True)
-    atomic_write_bytes(path, (text + "\n").encode())
 
 
 # --------------------------------------------------------------------------- cases
@@ -356,27 +237,46 @@ def write_case(
     """
     stem = spec_stem(spec)
     files = case_files(directory, stem)
-    table = result.table
-    missing = [c for c in REQUIRED_COLUMNS if c not in table.columns]
-    if missing:
-        raise ValueError(f"case {stem}: result table lacks required columns {missing}")
-    if result.status not in VALID_STATUSES:
-        raise ValueError(
-            f"case {stem}: status {result.status!r} is not one of {list(VALID_STATUSES)}"
-        )
+    _check_result(stem, result)
     info = dict(result.info or {})
     if wall_time_s is None:
         wall_time_s = info.get("wall_time_s")
     if prov is None:
         prov = provenance()
 
-    csv_bytes = table.to_csv(index=False, lineterminator="\n").encode()
+    csv_bytes = result.table.to_csv(index=False, lineterminator="\n").encode()
     atomic_write_bytes(files.csv, csv_bytes)
+    meta = _sidecar(spec, result, files, csv_bytes, wall_time_s, prov)
+    atomic_write_json(files.json, meta)
+    return files
 
+
+def _check_result(stem: str, result: CaseResult) -> None:
+    """ValueError if the result table lacks :data:`REQUIRED_COLUMNS` or its status is unknown."""
+    missing = [c for c in REQUIRED_COLUMNS if c not in result.table.columns]
+    if missing:
+        raise ValueError(f"case {stem}: result table lacks required columns {missing}")
+    if result.status not in VALID_STATUSES:
+        raise ValueError(
+            f"case {stem}: status {result.status!r} is not one of {list(VALID_STATUSES)}"
+        )
+
+
+def _sidecar(
+    spec: CaseSpec,
+    result: CaseResult,
+    files: CaseFiles,
+    csv_bytes: bytes,
+    wall_time_s: float | None,
+    prov: Mapping[str, Any],
+) -> dict[str, Any]:
+    """The JSON sidecar of a case whose CSV holds ``csv_bytes`` (units in ``parameter_units``)."""
+    table = result.table
+    info = dict(result.info or {})
     spec_d = dataclasses.asdict(spec)
-    meta: dict[str, Any] = {
+    return {
         "schema_version": SCHEMA_VERSION,
-        "stem": stem,
+        "stem": spec_stem(spec),
         "material": spec.material,
         "thickness_mm": spec.thickness_mm,
         "diameter_mm": spec.diameter_mm,
@@ -404,8 +304,6 @@ def write_case(
         "git_dirty": prov.get("git_dirty"),
         "written_at": now_iso(),
     }
-    atomic_write_json(files.json, meta)
-    return files
 
 
 def _finite_or_none(x: Any) -> float | None:

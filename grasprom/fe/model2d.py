@@ -289,73 +289,23 @@ def discretise(outer_radius: float, thickness: float, mesh: MeshSpec) -> _Discre
     elem = skfem.ElementTriP2B() if bubble else skfem.ElementTriP2()
     basis = skfem.Basis(m, elem, intorder=4)
     nloc = elem.doflocs.shape[0]
-    grads = np.stack([basis.basis[a][0].grad for a in range(nloc)])  # (nloc, 2, ne, nq)
-    grads = grads.transpose(2, 3, 0, 1)  # (ne, nq, nloc, 2)
-    ne, nq = grads.shape[:2]
-    B = np.zeros((ne, nq, 2, 2, nloc, 2))  # [i, j, a, k] = delta_ik dN_a/dX_j
-    for i in range(2):
-        B[:, :, i, :, :, i] = grads.transpose(0, 1, 3, 2)
-    B = B.reshape(ne, nq, 4, 2 * nloc)
-    dx = np.asarray(basis.dx)
-    xq = basis.mapping.F(basis.X)  # (2, ne, nq) physical quadrature points
-    if bubble:
-        xc = m.p[:, m.t].mean(axis=1)  # (2, ne)
-        hsz = np.sqrt(dx.sum(axis=1))
-        psi = np.stack(
-            [
-                np.ones((ne, nq)),
-                (xq[0] - xc[0][:, None]) / hsz[:, None],
-                (xq[1] - xc[1][:, None]) / hsz[:, None],
-            ],
-            axis=-1,
-        )
-    else:
-        psi = np.ones((ne, nq, 1))
+    B, dx = _gradient_operator(basis, nloc)
+    psi = _pressure_basis(m, basis, dx, bubble)
     wpsi = dx[..., None] * psi
     Minv = np.linalg.inv(np.einsum("eqk,eql->ekl", wpsi, psi))
     sdofs = basis.element_dofs.T  # (ne, nloc) scalar dofs = node ids
-    edofs = np.empty((ne, 2 * nloc), dtype=np.int64)
+    edofs = np.empty((sdofs.shape[0], 2 * nloc), dtype=np.int64)
     edofs[:, 0::2] = 2 * sdofs
     edofs[:, 1::2] = 2 * sdofs + 1
     X = basis.doflocs.T.copy()
     if bubble:
         X[basis.interior_dofs[0]] = m.p[:, m.t].mean(axis=1).T
-    nnode = X.shape[0]
-    ndof = 2 * nnode
-    tol = 1e-9 * outer_radius
-    on_x0 = np.abs(X[:, 0]) < tol
-    on_y0 = np.abs(X[:, 1]) < tol
-    if bubble:
-        on_x0[basis.interior_dofs[0]] = False
-        on_y0[basis.interior_dofs[0]] = False
-    sym_x = 2 * np.flatnonzero(on_x0)
-    sym_y = 2 * np.flatnonzero(on_y0) + 1
-
-    rin = outer_radius - thickness
-    on_bnd = np.zeros(m.facets.shape[1], dtype=bool)
-    on_bnd[m.boundary_facets()] = True
-    rmid = np.hypot(*m.p[:, m.facets].mean(axis=1))
-    h_r = thickness / mesh.n_layers
-    outer_f = np.flatnonzero(on_bnd & (rmid > outer_radius - 0.25 * h_r))
-    inner_f = np.flatnonzero(on_bnd & (rmid < rin + 0.25 * h_r))
-
-    def edge_nodes(facets):
-        return np.hstack([m.facets[:, facets].T, basis.facet_dofs[:, facets].T])
-
-    outer_edges = edge_nodes(outer_f)
-    outer_nodes = np.unique(outer_edges)
-    inner_nodes = np.unique(edge_nodes(inner_f))
-    inner_nodes = inner_nodes[~on_y0[inner_nodes]]  # the fold corner is on y = 0 already
-
-    nd = 2 * nloc
-    rows = np.repeat(edofs, nd, axis=1).ravel()
-    cols = np.tile(edofs, (1, nd)).ravel()
-    keys = rows * ndof + cols
-    uniq, scatter = np.unique(keys, return_inverse=True)
-    urows = uniq // ndof
-    ucols = uniq % ndof
-    indptr = np.searchsorted(urows, np.arange(ndof + 1))
-    diag_pos = np.flatnonzero(urows == ucols)
+    ndof = 2 * X.shape[0]
+    sym_x, sym_y, on_y0 = _symmetry_dofs(basis, X, outer_radius, bubble)
+    outer_edges, outer_nodes, inner_nodes = _wall_nodes(
+        m, basis, outer_radius, thickness, mesh.n_layers, on_y0
+    )
+    rows, cols, scatter, indptr, diag_pos = _csr_map(edofs, ndof)
     return _Discretisation(
         ndof=ndof,
         edofs=edofs,
@@ -372,13 +322,94 @@ def discretise(outer_radius: float, thickness: float, mesh: MeshSpec) -> _Discre
         outer_nodes=outer_nodes,
         inner_nodes=inner_nodes,
         outer_edges=outer_edges,
-        rows=urows,
-        cols=ucols,
+        rows=rows,
+        cols=cols,
         scatter=scatter.ravel(),
         indptr=indptr,
-        indices=ucols.astype(np.int32),
+        indices=cols.astype(np.int32),
         diag_pos=diag_pos,
     )
+
+
+def _gradient_operator(basis, nloc: int) -> tuple[np.ndarray, np.ndarray]:
+    """``B`` (ne, nq, 4, 2 nloc) with ``vec(grad u) = B @ u_e`` (1/mm), and ``dx`` (ne, nq)."""
+    grads = np.stack([basis.basis[a][0].grad for a in range(nloc)])  # (nloc, 2, ne, nq)
+    grads = grads.transpose(2, 3, 0, 1)  # (ne, nq, nloc, 2)
+    ne, nq = grads.shape[:2]
+    B = np.zeros((ne, nq, 2, 2, nloc, 2))  # [i, j, a, k] = delta_ik dN_a/dX_j
+    for i in range(2):
+        B[:, :, i, :, :, i] = grads.transpose(0, 1, 3, 2)
+    B = B.reshape(ne, nq, 4, 2 * nloc)
+    return B, np.asarray(basis.dx)
+
+
+def _pressure_basis(m, basis, dx: np.ndarray, bubble: bool) -> np.ndarray:
+    """Discontinuous pressure/dilatation basis at the quadrature points, (ne, nq, npr).
+
+    P1 (1, scaled x and y about the centroid) with the bubble element, else P0 (1).
+    """
+    ne, nq = dx.shape
+    if not bubble:
+        return np.ones((ne, nq, 1))
+    xq = basis.mapping.F(basis.X)  # (2, ne, nq) physical quadrature points
+    xc = m.p[:, m.t].mean(axis=1)  # (2, ne)
+    hsz = np.sqrt(dx.sum(axis=1))
+    return np.stack(
+        [
+            np.ones((ne, nq)),
+            (xq[0] - xc[0][:, None]) / hsz[:, None],
+            (xq[1] - xc[1][:, None]) / hsz[:, None],
+        ],
+        axis=-1,
+    )
+
+
+def _symmetry_dofs(basis, X: np.ndarray, outer_radius: float, bubble: bool):
+    """Vector dofs with ``u_x = 0`` (on ``x = 0``), with ``u_y = 0`` (on ``y = 0``), and the
+    node mask of ``y = 0`` (bubble coefficients excluded)."""
+    tol = 1e-9 * outer_radius
+    on_x0 = np.abs(X[:, 0]) < tol
+    on_y0 = np.abs(X[:, 1]) < tol
+    if bubble:
+        on_x0[basis.interior_dofs[0]] = False
+        on_y0[basis.interior_dofs[0]] = False
+    return 2 * np.flatnonzero(on_x0), 2 * np.flatnonzero(on_y0) + 1, on_y0
+
+
+def _wall_nodes(m, basis, outer_radius: float, thickness: float, n_layers: int, on_y0):
+    """Outer-wall edges (end, end, mid node triples) and nodes, and the inner-wall nodes off
+    ``y = 0`` (contact candidates with the jaw and the symmetry floor)."""
+    rin = outer_radius - thickness
+    on_bnd = np.zeros(m.facets.shape[1], dtype=bool)
+    on_bnd[m.boundary_facets()] = True
+    rmid = np.hypot(*m.p[:, m.facets].mean(axis=1))
+    h_r = thickness / n_layers
+    outer_f = np.flatnonzero(on_bnd & (rmid > outer_radius - 0.25 * h_r))
+    inner_f = np.flatnonzero(on_bnd & (rmid < rin + 0.25 * h_r))
+
+    def edge_nodes(facets):
+        return np.hstack([m.facets[:, facets].T, basis.facet_dofs[:, facets].T])
+
+    outer_edges = edge_nodes(outer_f)
+    outer_nodes = np.unique(outer_edges)
+    inner_nodes = np.unique(edge_nodes(inner_f))
+    inner_nodes = inner_nodes[~on_y0[inner_nodes]]  # the fold corner is on y = 0 already
+    return outer_edges, outer_nodes, inner_nodes
+
+
+def _csr_map(edofs: np.ndarray, ndof: int):
+    """CSR pattern of the element dofs: unique rows/cols, element-entry -> CSR position map,
+    row pointer and the positions of the diagonal."""
+    nd = edofs.shape[1]
+    rows = np.repeat(edofs, nd, axis=1).ravel()
+    cols = np.tile(edofs, (1, nd)).ravel()
+    keys = rows * ndof + cols
+    uniq, scatter = np.unique(keys, return_inverse=True)
+    urows = uniq // ndof
+    ucols = uniq % ndof
+    indptr = np.searchsorted(urows, np.arange(ndof + 1))
+    diag_pos = np.flatnonzero(urows == ucols)
+    return urows, ucols, scatter, indptr, diag_pos
 
 
 # ----------------------------------------------------------------------------------------------
@@ -635,31 +666,18 @@ def run_case(spec: CaseSpec, progress=None) -> CaseResult:
     fscale = material.mu * t
     scale_N = 2.0 * spec.jaw_length_mm  # quarter N/mm -> one jaw N
     h_end = 0.5 * spec.closed_gap_mm
-    state = _State(
-        np.zeros(disc.ndof),
-        np.zeros(disc.outer_nodes.size, dtype=bool),
-        np.zeros(disc.inner_nodes.size, dtype=bool),
-    )
-    top = np.flatnonzero(np.isclose(disc.X[disc.outer_nodes, 0], 0.0, atol=1e-12))
-    state.jaw_active[top] = True
-    state.f, state.K, _ = assemble(disc, material, state.u)
+    state = _initial_state(disc, material)
     rows = [dict(zip(COLUMNS, (2 * R, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0)))]
     h = R
     dh = s.dh_initial_mm
     landing = sorted((0.5 * g for g in s.land_on_gaps_mm), reverse=True)
-    n_fail = 0
     total_newton = 0
     fail_log: list[dict] = []
     force_prev = 0.0
     status = "partial"
     reason = ""
     while True:
-        dh = min(dh, s.dh_max_mm, h - h_end)
-        if h > t:  # resolve the walls meeting: approach h = t geometrically
-            dh = min(dh, max(0.01 * t, s.approach_fraction * (h - t)))
-        for hc in landing:
-            if h - dh < hc < h - 1e-12:
-                dh = h - hc
+        dh = _limit_step(dh, h, t, h_end, s, landing)
         if dh < s.dh_min_mm and h - h_end > s.dh_min_mm:
             reason = f"step below dh_min_mm={s.dh_min_mm} at gap {2 * h:.4f} mm"
             break
@@ -667,35 +685,15 @@ def run_case(spec: CaseSpec, progress=None) -> CaseResult:
         try:
             new_state, iters = _solve_step(disc, material, state, h_new, s, fscale)
         except (_NewtonFailure, RuntimeError, ValueError, FloatingPointError) as exc:
-            n_fail += 1
             fail_log.append({"gap_mm": 2 * h_new, "dh_mm": dh, "reason": str(exc)})
             dh *= 0.25
             continue
         total_newton += iters
         state = new_state
         h = h_new
-        force_q, width_q, peak, inner_w = _contact_measures(disc, state)
-        force_N = force_q * scale_N
-        _, J = _kinematics(disc, state.u)
-        rows.append(
-            dict(
-                zip(
-                    COLUMNS,
-                    (
-                        2 * h,
-                        R - h,
-                        force_N,
-                        2 * force_q,
-                        2 * width_q,
-                        peak,
-                        force_q / width_q if width_q > 0 else 0.0,
-                        2 * inner_w,
-                        float(J.min()),
-                        iters,
-                    ),
-                )
-            )
-        )
+        row = _step_row(disc, state, h, R, scale_N, iters)
+        rows.append(row)
+        force_N = row["force_N"]
         if progress is not None:
             progress(2 * h, force_N)
         if force_N >= spec.force_cap_N:
@@ -704,21 +702,31 @@ def run_case(spec: CaseSpec, progress=None) -> CaseResult:
         if h <= h_end + 1e-12:
             status, reason = "complete", "closed gap reached"
             break
-        # step control: Newton effort and relative force change
-        grow = 1.5 if iters <= 6 else (1.0 if iters <= 12 else 0.6)
-        dh_next = dh * grow
-        if force_N > s.force_floor_N and force_prev > 0:
-            rel = (force_N - force_prev) / force_prev
-            if rel > 0:
-                dh_next = min(dh_next, dh * s.max_rel_force_step / rel)
-        dh = max(dh_next, 2 * s.dh_min_mm)
+        dh = _grow_step(dh, iters, force_N, force_prev, s)
         force_prev = force_N
     table = pd.DataFrame(rows, columns=list(COLUMNS))
-    info = {
+    info = _solver_record(spec, disc, material, table, reason, total_newton, fail_log, h, t0)
+    return CaseResult(table=table, status=status, info=info)
+
+
+def _solver_record(
+    spec: CaseSpec,
+    disc: _Discretisation,
+    material: Material,
+    table: pd.DataFrame,
+    reason: str,
+    total_newton: int,
+    fail_log: list[dict],
+    h: float,
+    t0: float,
+) -> dict:
+    """The JSON-serialisable ``CaseResult.info`` of a finished run (``h``: last jaw height,
+    mm; ``t0``: :func:`time.perf_counter` at the start)."""
+    return {
         "status_reason": reason,
-        "steps": len(rows) - 1,
+        "steps": len(table) - 1,
         "newton_iterations": int(total_newton),
-        "failures": n_fail,
+        "failures": len(fail_log),
         "failure_log": fail_log[-20:],
         "last_gap_mm": float(2 * h),
         "max_force_N": float(table["force_N"].max()),
@@ -731,7 +739,72 @@ def run_case(spec: CaseSpec, progress=None) -> CaseResult:
         "element": "P2 triangle, 6-point rule, per-element mean dilatation (P2/P0)",
         "force_definition": "force_N = 2 x quarter-model reaction (N/mm) x jaw_length_mm",
     }
-    return CaseResult(table=table, status=status, info=info)
+
+
+def _initial_state(disc: _Discretisation, material: Material) -> _State:
+    """Undeformed state at first touch: the top outer node(s) on the jaw, no floor contact."""
+    state = _State(
+        np.zeros(disc.ndof),
+        np.zeros(disc.outer_nodes.size, dtype=bool),
+        np.zeros(disc.inner_nodes.size, dtype=bool),
+    )
+    top = np.flatnonzero(np.isclose(disc.X[disc.outer_nodes, 0], 0.0, atol=1e-12))
+    state.jaw_active[top] = True
+    state.f, state.K, _ = assemble(disc, material, state.u)
+    return state
+
+
+def _limit_step(
+    dh: float, h: float, t: float, h_end: float, s: SolverSettings, landing: list[float]
+) -> float:
+    """Jaw step (mm) from jaw height ``h`` (mm): capped by ``dh_max_mm`` and the closed height,
+    geometric on the approach to the walls meeting (``h = t``), landing on the requested gaps."""
+    dh = min(dh, s.dh_max_mm, h - h_end)
+    if h > t:  # resolve the walls meeting: approach h = t geometrically
+        dh = min(dh, max(0.01 * t, s.approach_fraction * (h - t)))
+    for hc in landing:
+        if h - dh < hc < h - 1e-12:
+            dh = h - hc
+    return dh
+
+
+def _step_row(
+    disc: _Discretisation, state: _State, h: float, R: float, scale_N: float, iters: int
+) -> dict:
+    """Table row (:data:`COLUMNS`) of a converged step at jaw height ``h`` (mm)."""
+    force_q, width_q, peak, inner_w = _contact_measures(disc, state)
+    force_N = force_q * scale_N
+    _, J = _kinematics(disc, state.u)
+    return dict(
+        zip(
+            COLUMNS,
+            (
+                2 * h,
+                R - h,
+                force_N,
+                2 * force_q,
+                2 * width_q,
+                peak,
+                force_q / width_q if width_q > 0 else 0.0,
+                2 * inner_w,
+                float(J.min()),
+                iters,
+            ),
+        )
+    )
+
+
+def _grow_step(
+    dh: float, iters: int, force_N: float, force_prev: float, s: SolverSettings
+) -> float:
+    """Next jaw step (mm): step control by Newton effort and relative force change."""
+    grow = 1.5 if iters <= 6 else (1.0 if iters <= 12 else 0.6)
+    dh_next = dh * grow
+    if force_N > s.force_floor_N and force_prev > 0:
+        rel = (force_N - force_prev) / force_prev
+        if rel > 0:
+            dh_next = min(dh_next, dh * s.max_rel_force_step / rel)
+    return max(dh_next, 2 * s.dh_min_mm)
 
 
 def _validate_spec(spec: CaseSpec) -> None:

@@ -1,4 +1,5 @@
-"""Report on a sweep directory: a summary table (text + CSV) and force-gap plots (PNG).
+"""Report on a sweep directory: a summary table (text + CSV) and force-gap plots (PNG, drawn
+by :func:`grasprom.fe.plots.plot_sweep`).
 
 Units: gaps in mm, forces in N.
 """
@@ -14,6 +15,8 @@ import numpy as np
 import pandas as pd
 
 from grasprom.fe import datafiles as df
+from grasprom.fe.atomicio import atomic_write_bytes
+from grasprom.fe.plots import plot_sweep
 
 DEFAULT_GAPS_MM = (20.0, 10.0, 5.0, 3.0, 2.0)
 """Jaw gaps in mm at which the report tabulates the force."""
@@ -120,80 +123,6 @@ def format_table(table: pd.DataFrame) -> str:
     return table.to_string(index=False, float_format=lambda x: f"{x:.4g}", na_rep="-")
 
 
-def plot_sweep(
-    directory: str | os.PathLike[str],
-    path: str | os.PathLike[str],
-    *,
-    logy: bool = False,
-    haptic_force_N: float = 50.0,
-) -> Path:
-    """Plot force (N) vs jaw gap (mm), one line per thickness, one column per material.
-
-    Top row: the whole closing stroke; bottom row: a linear zoom on the haptic range
-    (0 to ``haptic_force_N``) where the walls meet.
-
-    Parameters
-    ----------
-    directory : str or os.PathLike
-        Sweep directory.
-    path : str or os.PathLike
-        PNG file to write.
-    logy : bool
-        Logarithmic force axis on the top row (non-positive forces are dropped).
-    haptic_force_N : float
-        Upper force limit of the zoomed bottom row (N).
-
-    Returns
-    -------
-    pathlib.Path
-        The PNG written.
-    """
-    import matplotlib
-
-    matplotlib.use("Agg", force=True)
-    import matplotlib.pyplot as plt
-
-    data = df.load_sweep(directory)
-    mats = sorted(data["material"].unique()) if len(data) else []
-    n = max(len(mats), 1)
-    fig, axes = plt.subplots(2, n, figsize=(4.8 * n, 7.6), sharey="row", squeeze=False)
-    thicknesses = sorted(data["thickness_mm"].unique()) if len(data) else []
-    cmap = plt.get_cmap("viridis")
-    tmin, tmax = (min(thicknesses), max(thicknesses)) if thicknesses else (0.0, 1.0)
-    for col, mat in enumerate(mats):
-        sub = data[data["material"] == mat]
-        top, zoom = axes[0][col], axes[1][col]
-        for t, case in sub.groupby("thickness_mm", sort=True):
-            x = case["gap_mm"].to_numpy(float)
-            y = case["force_N"].to_numpy(float)
-            c = cmap(0.0 if tmax == tmin else (t - tmin) / (tmax - tmin))
-            style = "-" if (case["status"] == "complete").all() else "--"
-            keep = y > 0 if logy else slice(None)
-            top.plot(x[keep], y[keep], style, color=c, lw=1.2, label=f"t = {t:.2f} mm")
-            zoom.plot(x, y, style, color=c, lw=1.2)
-        top.set_title(f"material: {mat}")
-        if logy:
-            top.set_yscale("log")
-        zoom.set_ylim(0.0, haptic_force_N)
-        zoom.set_xlim(2.2 * tmax + 1.0 if thicknesses else 6.0, 1.0)
-        zoom.set_title(f"{mat}: haptic range, walls meeting at gap ~ 2t", fontsize=9)
-        for ax in (top, zoom):
-            ax.set_xlabel("jaw gap (mm)")
-            ax.grid(True, alpha=0.3)
-        top.invert_xaxis()
-    axes[0][0].set_ylabel("jaw force (N)")
-    axes[1][0].set_ylabel("jaw force (N), linear")
-    if mats:
-        axes[0][-1].legend(fontsize=7, ncol=2, title="dashed: partial", title_fontsize=7)
-    fig.suptitle(f"Force vs gap: {Path(directory)}")
-    fig.tight_layout()
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
-
-
 def make_report(
     directory: str | os.PathLike[str],
     out_dir: str | os.PathLike[str],
@@ -222,6 +151,6 @@ def make_report(
     out.mkdir(parents=True, exist_ok=True)
     table = sweep_table(directory, gaps_mm)
     csv_path = out / "sweep_table.csv"
-    df.atomic_write_bytes(csv_path, table.to_csv(index=False, lineterminator="\n").encode())
+    atomic_write_bytes(csv_path, table.to_csv(index=False, lineterminator="\n").encode())
     png = plot_sweep(directory, out / "force_gap.png", logy=logy)
     return ReportFiles(table_csv=csv_path, plot_png=png, text=format_table(table))

@@ -31,13 +31,13 @@ def _cs_derivative(f, theta_rad: np.ndarray, h: float = 1e-30) -> np.ndarray:
 
 def _gap_from_geometry(theta_rad):
     """Gap rebuilt from the slider position (independent of the analytic derivatives)."""
-    c = P._c
-    return P.gap_closed_mm + c.gap_per_xc * (kin._slider_x_mm(theta_rad, P) - c.xc_closed)
+    c = P.constants
+    return P.gap_closed_mm + c.gap_per_xc * (kin.slider_x_mm(theta_rad, P) - c.xc_closed)
 
 
 def _energy_from_geometry(theta_rad):
-    c = P._c
-    u = (c.xc_open - kin._slider_x_mm(theta_rad, P)) * c.stroke_sign
+    c = P.constants
+    u = (c.xc_open - kin.slider_x_mm(theta_rad, P)) * c.stroke_sign
     return P.spring_preload_N * u + 0.5 * P.spring_k_N_per_mm * u * u
 
 
@@ -100,7 +100,10 @@ def test_analytic_derivatives_match_complex_step():
     np.testing.assert_allclose(g1, _cs_derivative(_gap_from_geometry, th), rtol=1e-12)
     g2 = kin.d2gap_dtheta2_mm_per_rad2(THETA, P)
     g2_cs = _cs_derivative(
-        lambda t: kin._dxc(t, P.L2_mm, P.offset_d_mm, P._c.h, P._c.side)[0] * P._c.gap_per_xc,
+        lambda t: (
+            kin.dxc_dtheta(t, P.L2_mm, P.offset_d_mm, P.constants.h, P.constants.side)[0]
+            * P.constants.gap_per_xc
+        ),
         th,
     )
     np.testing.assert_allclose(g2, g2_cs, rtol=1e-10, atol=1e-10)

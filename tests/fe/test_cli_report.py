@@ -9,8 +9,9 @@ import pytest
 
 from grasprom.cli import main
 from grasprom.fe import datafiles as df
+from grasprom.fe.grid import build_grid
 from grasprom.fe.report import force_at_gap, make_report, sweep_table
-from grasprom.fe.sweep import build_grid, run_sweep
+from grasprom.fe.sweep import run_sweep
 from tests import fake_runner as fr
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from grasprom.fe.datafiles import load_sweep, read_case
-from grasprom.fe.sweep import parse_thickness
+from grasprom.fe.grid import parse_thickness
 
 SWEEP = Path(__file__).resolve().parents[2] / "fe_data" / "default"
 THICKNESSES = parse_thickness("0.8:2.0:0.1")

@@ -8,7 +8,8 @@ import logging
 import pandas as pd
 
 from grasprom.fe import datafiles as df
-from grasprom.fe.sweep import SweepInputError, build_grid, run_sweep
+from grasprom.fe.grid import SweepInputError, build_grid
+from grasprom.fe.sweep import run_sweep
 from tests import fake_runner as fr
 
 

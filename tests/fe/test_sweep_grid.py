@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from grasprom.fe.model2d import CaseSpec, MeshSpec
-from grasprom.fe.sweep import (
+from grasprom.fe.grid import (
     KNOWN_MATERIALS,
     SweepInputError,
     build_grid,
@@ -14,6 +13,7 @@ from grasprom.fe.sweep import (
     parse_thickness,
     spec_defaults,
 )
+from grasprom.fe.model2d import CaseSpec, MeshSpec
 
 
 def test_parse_thickness_range_inclusive_without_drift():

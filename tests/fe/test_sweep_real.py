@@ -17,7 +17,8 @@ from pathlib import Path
 import pandas as pd
 
 from grasprom.fe import datafiles as df
-from grasprom.fe.sweep import build_grid, run_sweep
+from grasprom.fe.grid import build_grid
+from grasprom.fe.sweep import run_sweep
 
 GRID = dict(thickness="0.8:2.0:0.4", materials="mr,le", closed_gap_mm=12.0)
 

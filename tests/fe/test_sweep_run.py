@@ -13,7 +13,8 @@ import pandas as pd
 import pytest
 
 from grasprom.fe import datafiles as df
-from grasprom.fe.sweep import SweepConflictError, SweepInputError, build_grid, run_sweep
+from grasprom.fe.grid import SweepInputError, build_grid
+from grasprom.fe.sweep import SweepConflictError, run_sweep
 from tests import fake_runner as fr
 
 
@@ -138,7 +139,8 @@ def test_bad_run_arguments(tmp_path):
 KILL_SCRIPT = """
 import json, sys
 sys.path.insert(0, {root!r})
-from grasprom.fe.sweep import build_grid, run_sweep
+from grasprom.fe.grid import build_grid
+from grasprom.fe.sweep import run_sweep
 from tests.fake_runner import slow_runner
 specs = build_grid("0.8:1.8:0.2", "mr")
 s = run_sweep(specs, sys.argv[1], workers=1, progress=False, runner=slow_runner)

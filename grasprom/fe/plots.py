@@ -1,0 +1,84 @@
+"""Figures of a sweep directory: force vs jaw gap per material and thickness (PNG).
+
+Drawn with matplotlib's object-oriented API (no pyplot state, the caller's backend is left
+alone). Units: gaps in mm, forces in N.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from grasprom.fe import datafiles as df
+
+
+def plot_sweep(
+    directory: str | os.PathLike[str],
+    path: str | os.PathLike[str],
+    *,
+    logy: bool = False,
+    haptic_force_N: float = 50.0,
+) -> Path:
+    """Plot force (N) vs jaw gap (mm), one line per thickness, one column per material.
+
+    Top row: the whole closing stroke; bottom row: a linear zoom on the haptic range
+    (0 to ``haptic_force_N``) where the walls meet.
+
+    Parameters
+    ----------
+    directory : str or os.PathLike
+        Sweep directory.
+    path : str or os.PathLike
+        PNG file to write.
+    logy : bool
+        Logarithmic force axis on the top row (non-positive forces are dropped).
+    haptic_force_N : float
+        Upper force limit of the zoomed bottom row (N).
+
+    Returns
+    -------
+    pathlib.Path
+        The PNG written.
+    """
+    import matplotlib
+    from matplotlib.figure import Figure
+
+    data = df.load_sweep(directory)
+    mats = sorted(data["material"].unique()) if len(data) else []
+    n = max(len(mats), 1)
+    fig = Figure(figsize=(4.8 * n, 7.6))
+    axes = fig.subplots(2, n, sharey="row", squeeze=False)
+    thicknesses = sorted(data["thickness_mm"].unique()) if len(data) else []
+    cmap = matplotlib.colormaps["viridis"]
+    tmin, tmax = (min(thicknesses), max(thicknesses)) if thicknesses else (0.0, 1.0)
+    for col, mat in enumerate(mats):
+        sub = data[data["material"] == mat]
+        top, zoom = axes[0][col], axes[1][col]
+        for t, case in sub.groupby("thickness_mm", sort=True):
+            x = case["gap_mm"].to_numpy(float)
+            y = case["force_N"].to_numpy(float)
+            c = cmap(0.0 if tmax == tmin else (t - tmin) / (tmax - tmin))
+            style = "-" if (case["status"] == "complete").all() else "--"
+            keep = y > 0 if logy else slice(None)
+            top.plot(x[keep], y[keep], style, color=c, lw=1.2, label=f"t = {t:.2f} mm")
+            zoom.plot(x, y, style, color=c, lw=1.2)
+        top.set_title(f"material: {mat}")
+        if logy:
+            top.set_yscale("log")
+        zoom.set_ylim(0.0, haptic_force_N)
+        zoom.set_xlim(2.2 * tmax + 1.0 if thicknesses else 6.0, 1.0)
+        zoom.set_title(f"{mat}: haptic range, walls meeting at gap ~ 2t", fontsize=9)
+        for ax in (top, zoom):
+            ax.set_xlabel("jaw gap (mm)")
+            ax.grid(True, alpha=0.3)
+        top.invert_xaxis()
+    axes[0][0].set_ylabel("jaw force (N)")
+    axes[1][0].set_ylabel("jaw force (N), linear")
+    if mats:
+        axes[0][-1].legend(fontsize=7, ncol=2, title="dashed: partial", title_fontsize=7)
+    fig.suptitle(f"Force vs gap: {Path(directory)}")
+    fig.tight_layout()
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    return out

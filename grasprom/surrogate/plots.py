@@ -1,0 +1,141 @@
+"""Figures of a surrogate: force and stiffness vs gap, with the FE points over them (PNG).
+
+Drawn with matplotlib's object-oriented API (no pyplot state, the caller's backend is left
+alone). Units: gaps in mm, forces in N, stiffness in N/mm.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from grasprom.surrogate.fedata import FECase, read_fe_cases
+from grasprom.surrogate.table import Surrogate
+from grasprom.surrogate.validation import fe_point_stiffness
+
+
+def plot_surrogate(
+    s: Surrogate,
+    path: str | os.PathLike[str],
+    fe_dir: str | os.PathLike[str] | None = None,
+    *,
+    n_gap: int = 600,
+) -> Path:
+    """Force (log scale) and stiffness vs gap, one panel column per material (PNG).
+
+    Curves are drawn at the thicknesses of the FE cases in ``fe_dir`` (else at the grid
+    thicknesses), with the FE points over them; the gap axis spans first touch down to the
+    closed height, zoomed on the wall contact in the lower row.
+
+    Parameters
+    ----------
+    s : Surrogate
+    path : str or os.PathLike
+        PNG file to write.
+    fe_dir : str or os.PathLike, optional
+        FE cases to overlay (e.g. ``fe_data/holdout``).
+    n_gap : int
+        Evaluation points per curve.
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    import matplotlib
+    from matplotlib.figure import Figure
+
+    cases: list[FECase] = []
+    if fe_dir is not None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            cases, _ = read_fe_cases(fe_dir)
+    mats = list(s.materials)
+    fig = Figure(figsize=(5.0 * len(mats), 11.0))
+    axes = fig.subplots(3, len(mats), squeeze=False)
+    cmap = matplotlib.colormaps["viridis"]
+    for col, m in enumerate(mats):
+        lo, hi = s.thickness_range(m)
+        mc = [c for c in cases if c.material == m and lo <= c.thickness_mm <= hi]
+        ts = [c.thickness_mm for c in mc] if mc else list(s.thicknesses(m))
+        _draw_surrogate_curves(axes[:, col], s, m, ts, n_gap, cmap)
+        _draw_fe_points(axes[:, col], mc, lo, hi, cmap)
+        _label_column(axes[:, col], s, m)
+    fig.suptitle(f"Surrogate ({s.source}) vs FE ({fe_dir})")
+    fig.tight_layout()
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    return out
+
+
+def _thickness_colour(cmap: Any, t: float, lo: float, hi: float) -> Any:
+    """Colour of thickness ``t`` (mm) on ``cmap`` over the swept range ``[lo, hi]`` (mm)."""
+    return cmap(0.0 if hi == lo else (t - lo) / (hi - lo))
+
+
+def _draw_surrogate_curves(
+    column: Sequence[Any], s: Surrogate, m: str, ts: Sequence[float], n_gap: int, cmap: Any
+) -> None:
+    """Surrogate force, force near wall contact and stiffness of material ``m`` at ``ts`` (mm)."""
+    lo, hi = s.thickness_range(m)
+    x_lo = min(c.gap_mm[0] for c in s.curves(m))
+    for t in ts:
+        col_t = _thickness_colour(cmap, t, lo, hi)
+        g = np.concatenate(
+            [
+                np.geomspace(x_lo, s.diameter_mm, n_gap),
+                np.linspace(2 * t - 0.6, 2 * t + 0.3, n_gap),
+            ]
+        )
+        g.sort()
+        f = s.force(g, t, m)
+        k = s.stiffness(g, t, m)
+        keep = f > 0
+        column[0].plot(g[keep], f[keep], "-", color=col_t, lw=1.0, label=f"{t:.2f} mm")
+        column[1].plot(g - 2 * t, f, "-", color=col_t, lw=1.0)
+        column[2].plot(g[k > 0], k[k > 0], "-", color=col_t, lw=1.0)
+
+
+def _draw_fe_points(
+    column: Sequence[Any], cases: Sequence[FECase], lo: float, hi: float, cmap: Any
+) -> None:
+    """FE force, force near wall contact and point stiffness of ``cases`` (open circles)."""
+    for c in cases:
+        col_t = _thickness_colour(cmap, c.thickness_mm, lo, hi)
+        keep = c.force_N > 0
+        column[0].plot(c.gap_mm[keep], c.force_N[keep], "o", ms=2.5, mfc="none", color=col_t)
+        column[1].plot(
+            c.gap_mm - 2 * c.thickness_mm, c.force_N, "o", ms=2.5, mfc="none", color=col_t
+        )
+        kf = fe_point_stiffness(c.gap_mm, c.force_N)
+        column[2].plot(c.gap_mm[kf > 0], kf[kf > 0], "o", ms=2.0, mfc="none", color=col_t)
+
+
+def _label_column(column: Sequence[Any], s: Surrogate, m: str) -> None:
+    """Scales, limits, titles, labels, legend and grid of the three panels of material ``m``."""
+    ax = column[0]
+    ax.set_yscale("log")
+    ax.set_xscale("log")
+    ax.set_title(f"{m} ({s.scheme}): force, lines = surrogate, o = FE")
+    ax.set_xlabel("jaw gap (mm)")
+    ax.set_ylabel("force (N)")
+    ax.legend(fontsize=6, ncol=2, title="thickness", title_fontsize=6)
+    ax = column[1]
+    ax.set_xlim(-0.5, 0.3)
+    ax.set_ylim(0, 2 * s.params.force_ref_N)
+    ax.set_title("haptic range, zoom on wall contact")
+    ax.set_xlabel("gap - 2 t (mm)")
+    ax.set_ylabel("force (N)")
+    ax = column[2]
+    ax.set_yscale("log")
+    ax.set_xscale("log")
+    ax.set_title("stiffness -dF/dgap (FE: larger adjacent secant)")
+    ax.set_xlabel("jaw gap (mm)")
+    ax.set_ylabel("stiffness (N/mm)")
+    for a in column:
+        a.grid(True, alpha=0.3, which="both")
