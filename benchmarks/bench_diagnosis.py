@@ -7,7 +7,7 @@ makes ``--trials`` "real" trials with the effect identities withheld;
 confusion matrix, top-1 accuracy, median
 held-out shrink, null -> none rate, the verdicts on out-of-library cases and the block
 attribution of single-effect cases (``where.block`` vs the block of the truth effect,
-:data:`grasprom.gap.diagnosis.EFFECTS`), with its 3 x 3 confusion matrix.
+:data:`grasprom.gap.EFFECTS`), with its 3 x 3 confusion matrix.
 
 ``--gap-channel`` gives every trial the measured jaw gap ``gap_mm`` as well
 (``synth_case(gap_channel=True)``: kinematic gap after the truth play + truth jaw deflection +
@@ -88,8 +88,7 @@ def run_case(case: dict, n_trials: int = 4, gap_channel: bool = False) -> dict:
     ``gap_channel`` adds the measured jaw gap ``gap_mm`` to the synthetic trials.
     """
     from grasprom.chain import kinematics as kin
-    from grasprom.gap import diagnosis as dg
-    from grasprom.gap import synth_case
+    from grasprom.gap import diagnose, synth_case, validate_trial
 
     s = _surrogate()
     chain = kin.ChainParams()
@@ -98,12 +97,12 @@ def run_case(case: dict, n_trials: int = 4, gap_channel: bool = False) -> dict:
         case["effects"], seed=case["seed"], surrogate=s, n_trials=n_trials, gap_channel=gap_channel
     )
     trials = [
-        dg.validate_trial(t.data, t.sidecar, f"case{case['seed']}_{i}", chain, s)
+        validate_trial(t.data, t.sidecar, f"case{case['seed']}_{i}", chain, s)
         for i, t in enumerate(sc.trials)
     ]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        d = dg.diagnose(trials, s, chain)
+        d = diagnose(trials, s, chain)
     v = d.report["verdict"]
     return {
         **case,

@@ -10,11 +10,11 @@ printed at the end for comparison.  One more trial of the same case is synthesis
 given to the diagnosis: its measured handle angle drives
 :func:`grasprom.control.controller.simulate` twice, with the plain controller and with the
 augmented model rendered
-(:func:`grasprom.gap.diagnosis.controller_params_from_augmented`; stiff coupling, no damping, no
+(:func:`grasprom.gap.controller_params_from_augmented`; stiff coupling, no damping, no
 encoder, so that the controller reproduces the static chain), and the RMS of simulated -
 measured handle force (N) is printed before / after (sensor effects of the model, which the
 controller does not render, applied to the simulated force with
-:func:`grasprom.gap.diagnosis.measured_handle_force_N`).  Runs in well under 30 s.
+:func:`grasprom.gap.measured_handle_force_N`).  Runs in well under 30 s.
 """
 
 from __future__ import annotations
@@ -33,10 +33,10 @@ import pandas as pd
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from grasprom import gap  # noqa: E402
 from grasprom.chain import kinematics as kin  # noqa: E402
 from grasprom.control import ControllerParams, simulate  # noqa: E402
 from grasprom.gap import SYNTH_EFFECTS, synth_case, write_case  # noqa: E402
-from grasprom.gap import diagnosis as dg  # noqa: E402
 from grasprom.surrogate import Surrogate  # noqa: E402
 
 
@@ -46,7 +46,7 @@ def stiff_params(thickness_mm: float, material: str) -> ControllerParams:
     Coupling 1e5 N/mm (softens a tissue of stiffness ``k_t`` by ``k_t / (k_c + k_t)`` < 0.3 %),
     no damping, no encoder quantisation, no torque saturation (100 N m), the return spring
     rendered, and the friction direction threshold at the diagnosis' "still" speed
-    (:data:`grasprom.gap.diagnosis.STILL_DEG_PER_S` of handle, in mm/s at the finger).
+    (:data:`grasprom.gap.STILL_DEG_PER_S` of handle, in mm/s at the finger).
     """
     return ControllerParams(
         thickness_mm=thickness_mm,
@@ -56,17 +56,17 @@ def stiff_params(thickness_mm: float, material: str) -> ControllerParams:
         encoder_counts_per_rev=0,
         torque_limit_Nm=100.0,
         render_spring=True,
-        friction_velocity_threshold_mm_per_s=math.radians(dg.STILL_DEG_PER_S)
+        friction_velocity_threshold_mm_per_s=math.radians(gap.STILL_DEG_PER_S)
         * kin.ChainParams().L3_mm,
     )
 
 
-def replay_heldout(trial: dg.Trial, augmented_path: Path, surrogate: Surrogate) -> dict:
+def replay_heldout(trial: gap.Trial, augmented_path: Path, surrogate: Surrogate) -> dict:
     """Simulate a held-out trial with the plain and the augmented controller.
 
     Parameters
     ----------
-    trial : grasprom.gap.diagnosis.Trial
+    trial : grasprom.gap.Trial
         The held-out trial (its angle drives the simulation, its handle force is the reference).
     augmented_path : Path
         ``augmented_model.json`` of the diagnosis.
@@ -78,15 +78,15 @@ def replay_heldout(trial: dg.Trial, augmented_path: Path, surrogate: Surrogate) 
         ``rms_before_N`` / ``rms_after_N`` (RMS of simulated - measured handle force, N, plain
         controller / augmented model), ``rendered`` and ``measurement_only`` (effect names).
     """
-    model = dg.load_augmented(augmented_path)
+    model = gap.load_augmented(augmented_path)
     base = stiff_params(trial.thickness_mm, trial.material)
-    params, info = dg.controller_params_from_augmented(base, model, surrogate)
+    params, info = gap.controller_params_from_augmented(base, model, surrogate)
     traj = pd.DataFrame({"time_s": trial.time_s, "theta_deg": trial.theta_deg})
     sim0 = simulate(traj, base, surrogate)
     sim1 = simulate(traj, params, surrogate)
     t = sim0["time_s"].to_numpy()
     meas = np.interp(t, trial.time_s, trial.force_handle_N)
-    f1 = dg.measured_handle_force_N(t, sim1["force_handle_N"].to_numpy(), info["measurement"])
+    f1 = gap.measured_handle_force_N(t, sim1["force_handle_N"].to_numpy(), info["measurement"])
     return {
         "rms_before_N": float(np.sqrt(np.mean((sim0["force_handle_N"].to_numpy() - meas) ** 2))),
         "rms_after_N": float(np.sqrt(np.mean((f1 - meas) ** 2))),
@@ -126,14 +126,14 @@ def main(argv=None) -> int:
     held.data.to_csv(held_path, index=False, float_format="%.6g")
     held_path.with_suffix(".json").write_text(json.dumps(held.sidecar, indent=2))
     chain = kin.ChainParams()
-    trials = [dg.load_trial(pth, chain, surrogate) for pth in paths]  # truth.json is not read
-    diag = dg.diagnose(trials, surrogate, chain)
-    written = dg.write_outputs(diag, out / "diagnosis")
-    print(dg.format_summary(diag.report))
+    trials = [gap.load_trial(pth, chain, surrogate) for pth in paths]  # truth.json is not read
+    diag = gap.diagnose(trials, surrogate, chain)
+    written = gap.write_outputs(diag, out / "diagnosis")
+    print(gap.format_summary(diag.report))
     print(f"\n(withheld truth: {json.dumps(case.truth['effects'], default=float)})")
 
     rep = replay_heldout(
-        dg.load_trial(held_path, chain, surrogate), written["augmented"], surrogate
+        gap.load_trial(held_path, chain, surrogate), written["augmented"], surrogate
     )
     print(
         f"\nheld-out trial {held_path.name} simulated by the controller "

@@ -12,8 +12,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from grasprom import gap
 from grasprom.chain import kinematics as kin
 from grasprom.cli import main
+from grasprom.cli import main as cli_main
 from grasprom.control import (
     ControllerParams,
     ImpedanceController,
@@ -21,12 +23,11 @@ from grasprom.control import (
     save_params,
     simulate,
 )
-from grasprom.gap import diagnosis as dg
 from grasprom.gap.synth import synth_case, write_case
 
 CHAIN = kin.ChainParams()
 L3 = CHAIN.L3_mm
-G0 = {f"g_{tau:g}s": 0.0 for tau in dg.PRONY_TAUS_S}
+G0 = {f"g_{tau:g}s": 0.0 for tau in gap.PRONY_TAUS_S}
 
 # one rendered effect at a time, in the diagnosis' JSON form
 EFFECT_CASES = {
@@ -50,7 +51,7 @@ def _stiff_params(**kw) -> ControllerParams:
         torque_limit_Nm=100.0,  # no saturation (handle force up to 150 N here)
         render_spring=True,
         # the diagnosis' "still" threshold (0.5 deg/s of handle = 0.47 mm/s at the finger)
-        friction_velocity_threshold_mm_per_s=math.radians(dg.STILL_DEG_PER_S) * L3,
+        friction_velocity_threshold_mm_per_s=math.radians(gap.STILL_DEG_PER_S) * L3,
     )
     return ControllerParams(**(base | kw))
 
@@ -79,15 +80,15 @@ def test_rendered_effect_matches_the_diagnosis_static_model(surrogate, effect):
     traj = grasp_trajectory(close_s=1.0, hold_s=1.0, open_s=1.0, theta_closed_deg=1.2)
     t = traj["time_s"].to_numpy()
     th = traj["theta_deg"].to_numpy()
-    model = dg.AugmentedModel({effect: dict(EFFECT_CASES[effect])}, CHAIN)
-    p, info = dg.controller_params_from_augmented(params, model, surrogate)
+    model = gap.AugmentedModel({effect: dict(EFFECT_CASES[effect])}, CHAIN)
+    p, info = gap.controller_params_from_augmented(params, model, surrogate)
     assert info["rendered"] == [effect] and info["measurement_only"] == []
     assert info["warnings"] == []
     sim = simulate(traj, p, surrogate)
     assert len(sim) == t.size and not sim["saturated"].any()
     f_ctl = sim["force_handle_N"].to_numpy()
     f_ref = model.handle_force_N(t, th, params.thickness_mm, params.material, surrogate)
-    f_base = dg.AugmentedModel({}, CHAIN).handle_force_N(
+    f_base = gap.AugmentedModel({}, CHAIN).handle_force_N(
         t, th, params.thickness_mm, params.material, surrogate
     )
     kt = surrogate.stiffness(kin.gap_mm(th, CHAIN), p.thickness_mm, p.material)
@@ -122,7 +123,7 @@ def test_baseline_matches_the_diagnosis_static_model(surrogate):
     t, th = traj["time_s"].to_numpy(), traj["theta_deg"].to_numpy()
     p = _stiff_params()
     f_ctl = simulate(traj, p, surrogate)["force_handle_N"].to_numpy()
-    f_ref = dg.AugmentedModel({}, CHAIN).handle_force_N(t, th, 1.8, "mr", surrogate)
+    f_ref = gap.AugmentedModel({}, CHAIN).handle_force_N(t, th, 1.8, "mr", surrogate)
     assert _rms(f_ctl - f_ref) < 0.002 * _rms(f_ref)
 
 
@@ -167,7 +168,7 @@ def test_play_operator_and_friction_memory(surrogate):
 
 # ------------------------------------------------------------------------------ mapping
 def test_mapping_clips_and_reports(surrogate):
-    model = dg.AugmentedModel(
+    model = gap.AugmentedModel(
         {
             "thickness_error": {"offset_mm": 0.35},
             "mechanism_friction": {
@@ -182,7 +183,7 @@ def test_mapping_clips_and_reports(surrogate):
         kin.ChainParams(spring_k_N_per_mm=0.5, L3_mm=60.0),
     )
     base = ControllerParams(thickness_mm=1.8, spring_k_N_per_mm=0.25)
-    p, info = dg.controller_params_from_augmented(base, model, surrogate)
+    p, info = gap.controller_params_from_augmented(base, model, surrogate)
     assert p.thickness_mm == 2.0  # 1.8 + 0.35 clamped into [0.8, 2.0]
     assert p.friction_coulomb_N == 0.0 and p.friction_load_coefficient == 0.05
     assert p.friction_viscous_N_s_per_mm == 0.001
@@ -194,13 +195,13 @@ def test_mapping_clips_and_reports(surrogate):
     w = " | ".join(info["warnings"])
     assert "coulomb_N = -0.2" in w and "clamped" in w and "return spring" in w
     # without a surrogate the offset is not clamped; measurement defaults when absent
-    p2, info2 = dg.controller_params_from_augmented(
-        base, dg.AugmentedModel({"thickness_error": {"offset_mm": 0.35}}, CHAIN)
+    p2, info2 = gap.controller_params_from_augmented(
+        base, gap.AugmentedModel({"thickness_error": {"offset_mm": 0.35}}, CHAIN)
     )
     assert p2.thickness_mm == pytest.approx(2.15)
     assert info2["measurement"] == {"offset_N": 0.0, "gain": 1.0, "delay_s": 0.0}
     # applying twice is flagged
-    _, info3 = dg.controller_params_from_augmented(p, model, surrogate)
+    _, info3 = gap.controller_params_from_augmented(p, model, surrogate)
     assert any("already render" in x for x in info3["warnings"])
 
 
@@ -208,8 +209,8 @@ def test_measured_handle_force_column(surrogate, tmp_path, capsys):
     """simulate --augmented: offset + gain x F(t - delay) in force_handle_measured_N."""
     sur = surrogate.save(tmp_path / "sur.json")
     aug = {
-        "format": dg.FORMAT_AUGMENTED,
-        "format_version": dg.FORMAT_VERSION,
+        "format": gap.FORMAT_AUGMENTED,
+        "format_version": gap.FORMAT_VERSION,
         "chain": {},
         "effects": [
             {"name": "tissue_stiffness_scale", "params": {"scale": 1.2}},
@@ -274,7 +275,7 @@ def test_diagnose_then_simulate_augmented_shrinks_the_gap(surrogate, tmp_path, c
     paths = write_case(case, tmp_path / "trials")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        rc = dg.main_diagnose([str(p) for p in paths[:3]]
+        rc = cli_main(["diagnose"] + [str(p) for p in paths[:3]]
                               + ["--out", str(tmp_path / "diag"), "--surrogate", str(sur),
                                  "--no-plots"])  # fmt: skip
     assert rc == 0
@@ -311,8 +312,8 @@ def test_exports_load_the_augmented_model(surrogate, tmp_path, capsys):
 
     sur = surrogate.save(tmp_path / "sur.json")
     aug = {
-        "format": dg.FORMAT_AUGMENTED,
-        "format_version": dg.FORMAT_VERSION,
+        "format": gap.FORMAT_AUGMENTED,
+        "format_version": gap.FORMAT_VERSION,
         "chain": {},
         "effects": [
             {"name": "tissue_stiffness_scale", "params": {"scale": 1.25}},
@@ -331,8 +332,8 @@ def test_exports_load_the_augmented_model(surrogate, tmp_path, capsys):
     start = {v.name: v.start for v in md.modelVariables}
     assert float(start["tissue_scale"]) == 1.25 and float(start["prony_g_1"]) == 0.3
     assert float(start["friction_coulomb"]) == 1.5
-    p, _ = dg.controller_params_from_augmented(
-        ControllerParams(), dg.load_augmented(tmp_path / "aug.json"), surrogate
+    p, _ = gap.controller_params_from_augmented(
+        ControllerParams(), gap.load_augmented(tmp_path / "aug.json"), surrogate
     )
     traj = grasp_trajectory(close_s=0.5, hold_s=0.3, open_s=0.5, theta_closed_deg=0.5)
     th = np.radians(traj["theta_deg"].to_numpy())

@@ -9,17 +9,20 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from grasprom import gap
 from grasprom.chain import kinematics as kin
+from grasprom.cli import main as cli_main
 from grasprom.control import ControllerParams, simulate
-from grasprom.gap import diagnosis as dg
-from grasprom.gap.synth import main_synth, synth_case, write_case
+from grasprom.gap.blocks import block_analysis
+from grasprom.gap.prepare import prepare_trial
+from grasprom.gap.synth import synth_case, write_case
 
 CHAIN = kin.ChainParams()
 
 
 def _trials(case, surrogate):
     return [
-        dg.validate_trial(t.data, t.sidecar, f"trial{i}.csv", CHAIN, surrogate)
+        gap.validate_trial(t.data, t.sidecar, f"trial{i}.csv", CHAIN, surrogate)
         for i, t in enumerate(case.trials)
     ]
 
@@ -28,7 +31,7 @@ def _diagnose(effects, seed, surrogate, n_trials=4):
     case = synth_case(effects, seed=seed, surrogate=surrogate, n_trials=n_trials)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return dg.diagnose(_trials(case, surrogate), surrogate, CHAIN)
+        return gap.diagnose(_trials(case, surrogate), surrogate, CHAIN)
 
 
 # ------------------------------------------------------------------------------ validation
@@ -64,8 +67,8 @@ SIDE = {"thickness_mm": 1.4, "material": "mr"}
     ],
 )
 def test_validation_names_row_and_column(surrogate, mutate, expect):
-    with pytest.raises(dg.TrialDataError) as ei:
-        dg.validate_trial(mutate(_good_df()), SIDE, "t.csv", CHAIN, surrogate)
+    with pytest.raises(gap.TrialDataError) as ei:
+        gap.validate_trial(mutate(_good_df()), SIDE, "t.csv", CHAIN, surrogate)
     assert "t.csv" in str(ei.value)
     assert expect in str(ei.value)
 
@@ -81,29 +84,29 @@ def test_validation_names_row_and_column(surrogate, mutate, expect):
     ],
 )
 def test_sidecar_validation(surrogate, side, expect):
-    with pytest.raises(dg.TrialDataError, match="side.json") as ei:
-        dg.validate_trial(_good_df(), side, "t.csv", CHAIN, surrogate, "side.json")
+    with pytest.raises(gap.TrialDataError, match="side.json") as ei:
+        gap.validate_trial(_good_df(), side, "t.csv", CHAIN, surrogate, "side.json")
     assert expect in str(ei.value)
 
 
 def test_load_trial_files(tmp_path, surrogate):
     _good_df().to_csv(tmp_path / "a.csv", index=False)
-    with pytest.raises(dg.TrialDataError, match=r"a\.json: sidecar missing"):
-        dg.load_trial(tmp_path / "a.csv", CHAIN, surrogate)
+    with pytest.raises(gap.TrialDataError, match=r"a\.json: sidecar missing"):
+        gap.load_trial(tmp_path / "a.csv", CHAIN, surrogate)
     (tmp_path / "a.json").write_text("{not json")
-    with pytest.raises(dg.TrialDataError, match=r"a\.json: cannot read sidecar"):
-        dg.load_trial(tmp_path / "a.csv", CHAIN, surrogate)
+    with pytest.raises(gap.TrialDataError, match=r"a\.json: cannot read sidecar"):
+        gap.load_trial(tmp_path / "a.csv", CHAIN, surrogate)
     (tmp_path / "a.json").write_text(json.dumps(SIDE | {"trial_id": "A"}))
-    tr = dg.load_trial(tmp_path / "a.csv", CHAIN, surrogate)
+    tr = gap.load_trial(tmp_path / "a.csv", CHAIN, surrogate)
     assert tr.trial_id == "A" and tr.material == "mr" and tr.force_jaw_N is None
 
 
 # ------------------------------------------------------------------------------ extremes
 def test_no_contact_gives_clear_message(surrogate):
     df = _good_df(300).assign(theta_deg=np.linspace(22, 21, 300))  # never touches the tube
-    tr = dg.validate_trial(df, SIDE, "free.csv", CHAIN, surrogate)
-    with pytest.raises(dg.DiagnosisError, match="no trial reaches the tissue"):
-        dg.diagnose([tr], surrogate, CHAIN)
+    tr = gap.validate_trial(df, SIDE, "free.csv", CHAIN, surrogate)
+    with pytest.raises(gap.DiagnosisError, match="no trial reaches the tissue"):
+        gap.diagnose([tr], surrogate, CHAIN)
 
 
 def test_too_short_cli_exit_2(tmp_path, surrogate, capsys):
@@ -111,8 +114,8 @@ def test_too_short_cli_exit_2(tmp_path, surrogate, capsys):
     (tmp_path / "s.json").write_text(json.dumps(SIDE))
     sur = tmp_path / "sur.json"
     surrogate.save(sur)
-    rc = dg.main_diagnose(
-        [str(tmp_path / "s.csv"), "--out", str(tmp_path / "o"), "--surrogate", str(sur)]
+    rc = cli_main(
+        ["diagnose", str(tmp_path / "s.csv"), "--out", str(tmp_path / "o"), "--surrogate", str(sur)]
     )
     assert rc == 2
     err = capsys.readouterr().err
@@ -152,7 +155,7 @@ def test_blind_small_benchmark(surrogate):
         # tissue and mechanism, two sensor cases); the block-attribution figure of
         # benchmarks/bench_diagnosis.py is 48/48 single cases (seed 2024, 96/96 on seeds 11, 777)
         assert d.report["where"]["block_source"].startswith("measured channels")
-        blocks.append((eff, d.report["where"]["block"], dg.EFFECTS[eff].block))
+        blocks.append((eff, d.report["where"]["block"], gap.EFFECTS[eff].block))
     assert correct >= 7, correct
     assert all(b == tb for _, b, tb in blocks), blocks
     assert np.median(shrinks) >= 0.7
@@ -180,14 +183,14 @@ def test_block_attribution_with_gap_channel(surrogate):
                 c = p["deflection_at_20N_mm"] / 20.0 ** p["exponent"]
                 g = g + c * np.clip(df["force_jaw_N"].to_numpy(), 0.0, None) ** p["exponent"]
             df["gap_mm"] = g
-            trials.append(dg.validate_trial(df, t.sidecar, f"t{i}.csv", CHAIN, surrogate))
-        preps = [dg._prepare(tr, surrogate, CHAIN) for tr in trials]
-        bb, how = dg._block_analysis(preps, surrogate, CHAIN)
+            trials.append(gap.validate_trial(df, t.sidecar, f"t{i}.csv", CHAIN, surrogate))
+        preps = [prepare_trial(tr, surrogate, CHAIN) for tr in trials]
+        bb, how = block_analysis(preps, surrogate, CHAIN)
         assert how == ""  # measured gap: no model decides the split
-        assert max(dg.BLOCKS, key=lambda k: bb[k]["share"]) == block, bb
+        assert max(gap.BLOCKS, key=lambda k: bb[k]["share"]) == block, bb
         assert bb[block]["share"] > 0.95, bb
-    bare = dg.validate_trial(_good_df(), SIDE, "t.csv", CHAIN, surrogate)
-    assert dg._block_analysis([dg._prepare(bare, surrogate, CHAIN)], surrogate, CHAIN) == (None, "")
+    bare = gap.validate_trial(_good_df(), SIDE, "t.csv", CHAIN, surrogate)
+    assert block_analysis([prepare_trial(bare, surrogate, CHAIN)], surrogate, CHAIN) == (None, "")
 
 
 def test_synth_gap_channel_and_block(surrogate):
@@ -228,7 +231,7 @@ def test_synth_gap_channel_and_block(surrogate):
         assert all(tr.gap_mm is not None for tr in trials)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            d = dg.diagnose(trials, surrogate, CHAIN)
+            d = gap.diagnose(trials, surrogate, CHAIN)
         w = d.report["where"]
         assert w["block"] == block, (eff, d.report["baseline"]["by_block"])
         assert w["block_source"] == "measured channels (force_jaw_N / gap_mm)"  # no model fit
@@ -242,9 +245,9 @@ def test_pair_and_report_schema(surrogate, tmp_path):
     assert set(r["verdict"]["effects"]) == {"mechanism_friction", "latency"}
     for k in ("rms_N", "noise_N", "by_phase"):
         assert k in r["baseline"]
-    for ph in dg.PHASES:
+    for ph in gap.PHASES:
         assert {"rms_N", "bias_N", "share"} <= set(r["baseline"]["by_phase"][ph])
-    assert r["where"]["phase"] in dg.PHASES and r["where"]["block"] in dg.BLOCKS
+    assert r["where"]["phase"] in gap.PHASES and r["where"]["block"] in gap.BLOCKS
     assert r["baseline"]["by_block"] is not None  # the synthetic trials carry force_jaw_N
     e0 = r["effects"][0]
     assert {"name", "params", "heldout_rms_N", "shrink", "score"} <= set(e0)
@@ -264,14 +267,14 @@ def test_pair_and_report_schema(surrogate, tmp_path):
 
     # augmented model: saved, loaded, rendered by the controller (friction) and applied to the
     # measurement (latency); the simulated measured force is closer to the trial's
-    paths = dg.write_outputs(d, tmp_path, plots=False)
-    m = dg.load_augmented(paths["augmented"])
+    paths = gap.write_outputs(d, tmp_path, plots=False)
+    m = gap.load_augmented(paths["augmented"])
     assert set(m.effects) == {"mechanism_friction", "latency"}
     tr = d.preps[0].trial
     base = ControllerParams(thickness_mm=tr.thickness_mm, material=tr.material,
                             coupling_stiffness_N_per_mm=1e5, damping_Nms_per_rad=0.0,
                             encoder_counts_per_rev=0, torque_limit_Nm=100.0)  # fmt: skip
-    p, info = dg.controller_params_from_augmented(base, m, surrogate)
+    p, info = gap.controller_params_from_augmented(base, m, surrogate)
     assert info["rendered"] == ["mechanism_friction"]
     assert info["measurement_only"] == ["latency"]
     assert info["measurement"]["delay_s"] == m.effects["latency"]["delay_s"] > 0
@@ -281,7 +284,7 @@ def test_pair_and_report_schema(surrogate, tmp_path):
     sim = simulate(traj, p, surrogate)
     t = sim["time_s"].to_numpy()
     meas = np.interp(t, tr.time_s, tr.force_handle_N)
-    f_aug = dg.measured_handle_force_N(t, sim["force_handle_N"].to_numpy(), info["measurement"])
+    f_aug = gap.measured_handle_force_N(t, sim["force_handle_N"].to_numpy(), info["measurement"])
     err_before = np.sqrt(np.mean((meas - sim0["force_handle_N"]) ** 2))
     err_after = np.sqrt(np.mean((meas - f_aug) ** 2))
     err_unmeasured = np.sqrt(np.mean((meas - sim["force_handle_N"]) ** 2))
@@ -294,25 +297,26 @@ def test_load_augmented_rejects_bad_file(tmp_path):
     p = tmp_path / "a.json"
     p.write_text(json.dumps({"format": "x", "format_version": 1}))
     with pytest.raises(ValueError, match="a.json"):
-        dg.load_augmented(p)
+        gap.load_augmented(p)
     p.write_text(
         json.dumps(
             {
-                "format": dg.FORMAT_AUGMENTED,
+                "format": gap.FORMAT_AUGMENTED,
                 "format_version": 1,
                 "effects": [{"name": "latency", "params": {"d": 1}}],
             }
         )
     )
     with pytest.raises(ValueError, match="needs parameters"):
-        dg.load_augmented(p)
+        gap.load_augmented(p)
 
 
 def test_cli_synth_then_diagnose(tmp_path, surrogate, capsys):
     sur = tmp_path / "sur.json"
     surrogate.save(sur)
-    rc = main_synth(
+    rc = cli_main(
         [
+            "synth",
             "--out",
             str(tmp_path / "d"),
             "--effect",
@@ -331,7 +335,7 @@ def test_cli_synth_then_diagnose(tmp_path, surrogate, capsys):
     side = json.loads((tmp_path / "d" / "trial_01.json").read_text())
     assert "tissue_stiffness_scale" not in json.dumps(side)  # withheld
     csvs = sorted(str(p) for p in (tmp_path / "d").glob("trial_*.csv"))
-    rc = dg.main_diagnose(csvs + ["--out", str(tmp_path / "o"), "--surrogate", str(sur)])
+    rc = cli_main(["diagnose", *csvs, "--out", str(tmp_path / "o"), "--surrogate", str(sur)])
     assert rc == 0
     out = capsys.readouterr().out
     assert "VERDICT: explained (tissue_stiffness_scale)" in out
@@ -339,9 +343,10 @@ def test_cli_synth_then_diagnose(tmp_path, surrogate, capsys):
     assert rep["verdict"]["effects"] == ["tissue_stiffness_scale"]
     assert (tmp_path / "o" / "residual_by_phase.png").is_file()
     assert (tmp_path / "o" / "trial_01.png").is_file()
-    assert main_synth(["--out", str(tmp_path / "e"), "--effect", "nope"]) == 2
-    rc = main_synth(
+    assert cli_main(["synth", "--out", str(tmp_path / "e"), "--effect", "nope"]) == 2
+    rc = cli_main(
         [
+            "synth",
             "--out",
             str(tmp_path / "g"),
             "--effect",
@@ -356,16 +361,16 @@ def test_cli_synth_then_diagnose(tmp_path, surrogate, capsys):
         ]
     )
     assert rc == 0
-    tr = dg.load_trial(tmp_path / "g" / "trial_01.csv", CHAIN, surrogate)
+    tr = gap.load_trial(tmp_path / "g" / "trial_01.csv", CHAIN, surrogate)
     assert tr.gap_mm is not None and tr.force_jaw_N is not None
 
 
 def test_write_case_roundtrip(tmp_path, surrogate):
     case = synth_case([], seed=9, surrogate=surrogate, n_trials=2, jaw_load_cell=False)
     paths = write_case(case, tmp_path)
-    tr = dg.load_trial(paths[0], CHAIN, surrogate)
+    tr = gap.load_trial(paths[0], CHAIN, surrogate)
     assert tr.force_jaw_N is None and tr.time_s.size > 1000
     assert tr.gap_mm is None  # off by default
     case = synth_case([], seed=9, surrogate=surrogate, n_trials=1, gap_channel=True)
-    tr = dg.load_trial(write_case(case, tmp_path / "g")[0], CHAIN, surrogate)
+    tr = gap.load_trial(write_case(case, tmp_path / "g")[0], CHAIN, surrogate)
     assert np.max(np.abs(tr.gap_mm - case.trials[0].data["gap_mm"].to_numpy())) < 1e-4

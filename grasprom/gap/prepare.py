@@ -1,0 +1,192 @@
+"""A trial on the analysis grid: subsampling, kinematic states (finger speed, direction of the
+last motion), the baseline model force, the per-sample error model and the phase labels.
+
+Analysis grid
+    Each trial is subsampled (not averaged, so the non-linear model is not biased by averaging)
+    to about :data:`ANALYSIS_RATE_HZ`; the sensor noise ``sigma`` (N) is estimated from the raw
+    handle force by the median absolute second difference, the encoder quantum ``q`` (deg) from the
+    smallest angle step, and every sample gets the standard deviation
+    ``s_i^2 = sigma^2 + (dFi/dtheta q)^2 / 12 + (0.01 Fi)^2`` (sensor noise, angle quantisation
+    through the model slope, 1 % surrogate uncertainty).
+
+Phases (per sample, from the baseline contact state and the measured angle velocity)
+    ``approach`` (no contact), ``bending`` (closing in contact, gap above the wall-contact gap),
+    ``compaction`` (closing with the inner walls meeting), ``hold`` (in contact, |dtheta/dt| <
+    0.5 deg/s), ``release`` (opening in contact).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+
+from grasprom.chain import kinematics as kin
+from grasprom.gap.signals import encoder_quantum, noise_sigma
+from grasprom.gap.trials import FloatArray, Trial
+from grasprom.surrogate import Surrogate
+
+PHASES = ("approach", "bending", "compaction", "hold", "release")
+DIRECTIONS = ("closing", "opening", "still")
+
+ANALYSIS_RATE_HZ = 100.0
+"""Target rate of the analysis grid (Hz)."""
+STILL_DEG_PER_S = 0.5
+"""|dtheta/dt| below which the handle counts as still (deg/s)."""
+SURROGATE_REL_UNCERTAINTY = 0.01
+
+
+@dataclass
+class PreparedTrial:
+    """A trial on the analysis grid, with everything the models need."""
+
+    trial: Trial | None
+    t: FloatArray
+    theta: FloatArray
+    raw_t: FloatArray
+    raw_theta: FloatArray
+    v_mm_s: FloatArray  # finger speed, > 0 closing
+    motion_dir: FloatArray  # direction of the last finger motion (+1 closing, -1 opening, 0)
+    thickness: float
+    material: str
+    F: FloatArray | None = None
+    sigma: FloatArray | None = None
+    phase: NDArray[np.int_] | None = None
+    direction: NDArray[np.int_] | None = None
+    F0: FloatArray | None = None
+    noise_N: float = float("nan")
+    quantum_deg: float = 0.0
+    cache: dict = field(default_factory=dict)
+
+
+def _contact_gap(surrogate: Surrogate, thickness: float, material: str) -> float:
+    cs = surrogate.curves(material)
+    return float(np.interp(thickness, [c.thickness_mm for c in cs], [c.contact_gap_mm for c in cs]))
+
+
+def kinematic_states(
+    raw_t: FloatArray, raw_theta: FloatArray, idx: NDArray[np.int_], chain: kin.ChainParams
+) -> tuple[FloatArray, FloatArray]:
+    """Finger speed (mm/s, > 0 closing) and direction of the last motion on ``idx``."""
+    dt = float(np.median(np.diff(raw_t))) if raw_t.size > 1 else 1e-3
+    w = max(int(round(0.02 / dt)), 1)  # ~20 ms moving average
+    sm = np.convolve(raw_theta, np.ones(w) / w, mode="same") if w > 1 else raw_theta
+    if w > 1:  # the ends of "same" convolution are biased: keep the raw values there
+        h = w // 2 + 1
+        sm[:h] = raw_theta[:h]
+        sm[-h:] = raw_theta[-h:]
+    vel = np.gradient(sm, raw_t)  # deg/s
+    v = -vel[idx]
+    v_mm = v * math.radians(1.0) * chain.L3_mm
+    moving = np.abs(v) > STILL_DEG_PER_S
+    d = np.where(moving, np.sign(v), np.nan)
+    # direction of the last motion: forward fill
+    s = pd.Series(d).ffill().fillna(0.0).to_numpy()
+    return v_mm, s
+
+
+def _add_baseline(
+    p: PreparedTrial, surrogate: Surrogate, chain: kin.ChainParams
+) -> tuple[FloatArray, FloatArray]:
+    """Set the baseline force ``F0`` (N) and the per-sample sigma (N).
+
+    Returns the kinematic gap (mm) and the surrogate force there (N).
+    """
+    th = p.theta
+    g = np.asarray(kin.gap_mm(th, chain))
+    fe = np.asarray(surrogate.force(g, p.thickness, p.material))
+    kt = np.asarray(surrogate.stiffness(g, p.thickness, p.material))
+    f0 = np.asarray(kin.handle_force_N(fe, th, chain))
+    slope = np.abs(np.asarray(kin.dhandle_force_dtheta_N_per_rad(fe, kt, th, chain))) * (
+        math.pi / 180.0
+    )
+    p.F0 = f0
+    sig = p.noise_N if math.isfinite(p.noise_N) and p.noise_N > 0 else 0.01
+    p.sigma = np.sqrt(
+        sig**2 + (slope * p.quantum_deg) ** 2 / 12.0 + (SURROGATE_REL_UNCERTAINTY * f0) ** 2 + 1e-8
+    )
+    return g, fe
+
+
+def _add_labels(
+    p: PreparedTrial, g: FloatArray, fe: FloatArray, surrogate: Surrogate, chain: kin.ChainParams
+) -> None:
+    """Set the phase (index of :data:`PHASES`) and direction (of :data:`DIRECTIONS`) labels.
+
+    ``g`` is the kinematic gap (mm), ``fe`` the surrogate force there (N).
+    """
+    th = p.theta
+    contact = fe > 1e-9
+    g_c = _contact_gap(surrogate, p.thickness, p.material)
+    vdeg = p.v_mm_s / (math.radians(1.0) * chain.L3_mm)
+    still = np.abs(vdeg) <= STILL_DEG_PER_S
+    direction = np.where(still, 2, np.where(vdeg > 0, 0, 1))  # closing, opening, still
+    phase = np.zeros(th.size, dtype=int)  # approach
+    phase[contact & (direction == 0) & (g > g_c)] = 1
+    phase[contact & (direction == 0) & (g <= g_c)] = 2
+    phase[contact & (direction == 2)] = 3
+    phase[contact & (direction == 1)] = 4
+    p.phase = phase
+    p.direction = direction
+
+
+def prepare_trial(
+    trial: Trial,
+    surrogate: Surrogate,
+    chain: kin.ChainParams,
+    rate_hz: float = ANALYSIS_RATE_HZ,
+) -> PreparedTrial:
+    """A measured trial on the analysis grid (about ``rate_hz``, Hz) with baseline and labels.
+
+    Parameters
+    ----------
+    trial : Trial
+    surrogate : Surrogate
+    chain : kinematics.ChainParams
+    rate_hz : float
+        Target rate of the analysis grid (Hz).
+
+    Returns
+    -------
+    PreparedTrial
+    """
+    raw_t, raw_th = trial.time_s, trial.theta_deg
+    dt = float(np.median(np.diff(raw_t)))
+    stride = max(int(round(1.0 / (rate_hz * dt))), 1)
+    idx = np.arange(0, raw_t.size, stride)
+    v_mm, s = kinematic_states(raw_t, raw_th, idx, chain)
+    p = PreparedTrial(
+        trial=trial,
+        t=raw_t[idx],
+        theta=raw_th[idx],
+        raw_t=raw_t,
+        raw_theta=raw_th,
+        v_mm_s=v_mm,
+        motion_dir=s,
+        thickness=trial.thickness_mm,
+        material=trial.material,
+        F=trial.force_handle_N[idx],
+    )
+    p.noise_N = noise_sigma(trial.force_handle_N)
+    p.quantum_deg = encoder_quantum(raw_th)
+    g, fe = _add_baseline(p, surrogate, chain)
+    _add_labels(p, g, fe, surrogate, chain)
+    return p
+
+
+def prepare_arrays(
+    time_s: FloatArray,
+    theta_deg: FloatArray,
+    thickness_mm: float,
+    material: str,
+    chain: kin.ChainParams,
+) -> PreparedTrial:
+    """Model-only preparation of an angle trajectory (for :meth:`AugmentedModel.handle_force_N`)."""
+    t = np.asarray(time_s, dtype=float)
+    th = np.asarray(theta_deg, dtype=float)
+    idx = np.arange(t.size)
+    v_mm, s = kinematic_states(t, th, idx, chain)
+    return PreparedTrial(None, t, th, t, th, v_mm, s, float(thickness_mm), str(material))

@@ -1,0 +1,135 @@
+"""The verdict of the diagnosis: ``none`` (the gap is within the noise), ``explained`` (an effect
+set explains at least :data:`~grasprom.gap.criteria.EXPLAINED_SHARE` of the systematic gap on
+held-out trials) or ``unexplained`` (an effect outside the library?), with its confidence and
+the held-out shrink of the gap."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from grasprom.gap.baseline import BaselineGap
+from grasprom.gap.criteria import EXPLAINED_SHARE, SIGNIFICANT_RHO
+from grasprom.gap.prepare import PHASES
+from grasprom.gap.selection import CandidateSearch
+from grasprom.gap.stats import rms, stats_by_label
+
+VERDICTS = ("explained", "none", "unexplained")
+
+
+@dataclass
+class Verdict:
+    """Outcome of :func:`judge` (RMS in N, shares and confidence in 0..1)."""
+
+    label: str
+    effects: list[str]
+    confidence: float
+    message: str
+    explained_share: float
+    rms_before_N: float
+    rms_after_N: float
+    shrink: float
+    shrink_rms: float
+
+
+def _separation(search: CandidateSearch, e_share: float) -> float:
+    """Separation (0..1) of the chosen set from the runner-up: ratio of the gaps they leave."""
+    chosen, best = search.chosen, search.best
+    runner = [k for k in search.singles if k != best]
+    if len(chosen) == 1:
+        alt = max((search.share(k) for k in runner), default=0.0)
+    else:
+        alt = max([search.share(best)] + [search.share(k) for k in search.pair_rows if k != chosen])
+    # separation from the runner-up: ratio of the systematic gaps they leave
+    u_best = max(1.0 - e_share, 0.02)
+    u_alt = max(1.0 - alt, 0.02)
+    return float(np.clip(math.log(u_alt / u_best) / math.log(5.0), 0.0, 1.0))
+
+
+def _classify(
+    gap: BaselineGap, chosen: tuple[str, ...], e_share: float, sep: float
+) -> tuple[str, list[str], float, str]:
+    """Label, effects, confidence (unclipped) and message of the verdict."""
+    rho0, noise = gap.rho, gap.noise_N
+    if not rho0 > SIGNIFICANT_RHO:
+        conf = float(np.clip(1.0 - rho0 / SIGNIFICANT_RHO, 0.0, 1.0)) * 0.5 + 0.5
+        msg = (
+            f"the gap is within the noise: systematic ratio {rho0:.3g} <= "
+            f"{SIGNIFICANT_RHO} (systematic RMS {gap.summary['systematic_rms_N']:.3g} N vs noise "
+            f"{noise:.3g} N)"
+        )
+        return "none", [], conf, msg
+    if e_share >= EXPLAINED_SHARE:
+        conf = float(np.clip(e_share, 0.0, 1.0)) * (0.4 + 0.6 * sep)
+        msg = (
+            f"{' + '.join(chosen)} explains {100 * min(e_share, 1.0):.0f} % of the systematic "
+            "gap on held-out trials"
+        )
+        return "explained", list(chosen), conf, msg
+    conf = float(np.clip(1.0 - max(e_share, 0.0) / EXPLAINED_SHARE, 0.0, 1.0)) * min(
+        1.0, rho0 / (4 * SIGNIFICANT_RHO)
+    )
+    msg = (
+        f"significant gap (systematic ratio {rho0:.3g}); the best candidate "
+        f"({' + '.join(chosen)}) explains only {100 * max(e_share, 0.0):.0f} % of it on "
+        "held-out trials: an effect outside the library?"
+    )
+    return "unexplained", [], conf, msg
+
+
+def judge(gap: BaselineGap, search: CandidateSearch, n_trials: int) -> Verdict:
+    """The verdict on the selected effect set (confidence capped at 0.3 for a single trial).
+
+    Parameters
+    ----------
+    gap : BaselineGap
+    search : CandidateSearch
+    n_trials : int
+        Trials in contact.
+
+    Returns
+    -------
+    Verdict
+    """
+    chosen = search.chosen
+    rms_before = rms(gap.residuals)
+    e_share = search.share(chosen)
+    rms_after = rms(search.cv[chosen].residuals)
+    sep = _separation(search, e_share)
+    label, effects_out, conf, msg = _classify(gap, chosen, e_share, sep)
+    if label != "explained":
+        rms_after = rms_before
+    if n_trials < 2:
+        conf = min(conf, 0.3)
+    shrink = search.sys_shrink(chosen) if label == "explained" else 0.0
+    shrink_rms = (
+        float(np.clip(1.0 - rms_after / rms_before, 0.0, 1.0))
+        if rms_before > 0 and label == "explained"
+        else 0.0
+    )
+    return Verdict(
+        label, effects_out, conf, msg, e_share, rms_before, rms_after, shrink, shrink_rms
+    )
+
+
+def verdict_section(v: Verdict, gap: BaselineGap, search: CandidateSearch) -> dict[str, Any]:
+    """The ``verdict`` section of the report (RMS by phase before / after on held-out trials)."""
+    by_phase_after = stats_by_label(search.cv[search.chosen].residuals, gap.labels, PHASES)
+    by_phase_before = gap.summary["by_phase"]
+    return {
+        "label": v.label,
+        "effects": v.effects,
+        "heldout_rms_before_N": v.rms_before_N,
+        "heldout_rms_after_N": v.rms_after_N,
+        "shrink": v.shrink,
+        "shrink_rms": v.shrink_rms,
+        "confidence": float(np.clip(v.confidence, 0.0, 1.0)),
+        "explained_share": v.explained_share if v.label != "none" else 0.0,
+        "best_candidate": list(search.chosen),
+        "by_phase_before": {k: val["rms_N"] for k, val in by_phase_before.items()},
+        "by_phase_after": {k: val["rms_N"] for k, val in by_phase_after.items()},
+        "message": v.message,
+    }
