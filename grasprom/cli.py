@@ -37,9 +37,6 @@ from grasprom.paths import DEFAULT_HOLDOUT_DIR, DEFAULT_SWEEP_DIR, resolve_data_
 
 
 def _build_parser() -> argparse.ArgumentParser:
-    from grasprom.fe import KNOWN_MATERIALS, spec_defaults
-
-    d = spec_defaults()
     p = argparse.ArgumentParser(
         prog="grasprom",
         description="From FE clamping sweeps of the colon wall to haptic grasp controllers: "
@@ -52,6 +49,30 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     _add_build_parser(sub)
 
+    _add_sweep_parser(sub)
+    _add_report_parser(sub)
+    _add_surrogate_parser(sub)
+    _add_simulate_parser(sub)
+    _add_tune_parser(sub)
+    _add_export_parser(sub)
+    # subcommands with their own parsers (main() hands them the rest of the command line)
+    sub.add_parser(
+        "diagnose",
+        add_help=False,
+        help="sim-to-real gap diagnosis of measured trials (grasprom diagnose -h)",
+    )
+    sub.add_parser(
+        "synth",
+        add_help=False,
+        help="synthetic 'real' trials with withheld effects (grasprom synth -h)",
+    )
+    return p
+
+
+def _add_sweep_parser(sub) -> None:
+    from grasprom.fe import KNOWN_MATERIALS, spec_defaults
+
+    d = spec_defaults()
     s = sub.add_parser(
         "sweep",
         help="run an FE sweep over thickness x material (resumable)",
@@ -69,6 +90,29 @@ def _build_parser() -> argparse.ArgumentParser:
         required=True,
         help=f"comma list of materials from {','.join(KNOWN_MATERIALS)}",
     )
+    _add_case_geometry(s, d)
+    g = s.add_mutually_exclusive_group()
+    g.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="local worker processes (default: CPU count; 1 = in-process)",
+    )
+    g.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDR",
+        help="address of an existing Dask scheduler, e.g. tcp://127.0.0.1:8786",
+    )
+    s.add_argument(
+        "--out", required=True, metavar="DIR", help="sweep directory, e.g. fe_data/<name>"
+    )
+    s.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _add_case_geometry(s: argparse.ArgumentParser, d: dict) -> None:
+    """Tube, jaw and mesh options of ``grasprom sweep`` (defaults ``d`` from the FE model)."""
     s.add_argument(
         "--diameter",
         type=float,
@@ -112,25 +156,9 @@ def _build_parser() -> argparse.ArgumentParser:
         metavar="N",
         help=f"mesh divisions along the quarter circumference (default {d['n_circ']})",
     )
-    g = s.add_mutually_exclusive_group()
-    g.add_argument(
-        "--workers",
-        type=int,
-        default=None,
-        metavar="N",
-        help="local worker processes (default: CPU count; 1 = in-process)",
-    )
-    g.add_argument(
-        "--scheduler",
-        default=None,
-        metavar="ADDR",
-        help="address of an existing Dask scheduler, e.g. tcp://127.0.0.1:8786",
-    )
-    s.add_argument(
-        "--out", required=True, metavar="DIR", help="sweep directory, e.g. fe_data/<name>"
-    )
-    s.add_argument("--quiet", action="store_true", help="no progress bar")
 
+
+def _add_report_parser(sub) -> None:
     r = sub.add_parser("report", help="table and plot of a sweep directory")
     r.add_argument(
         "directory",
@@ -152,6 +180,8 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     r.add_argument("--logy", dest="logy", action="store_true", help=argparse.SUPPRESS)
 
+
+def _add_surrogate_parser(sub) -> None:
     sg = sub.add_parser("surrogate", help="tabulated force surrogate (build, check, plot)")
     ssub = sg.add_subparsers(dest="surrogate_command", required=True, metavar="{build,check,plot}")
     b = ssub.add_parser("build", help="build a surrogate JSON from an FE sweep")
@@ -184,32 +214,11 @@ def _build_parser() -> argparse.ArgumentParser:
     pl.add_argument("surrogate", metavar="FILE", help="surrogate JSON")
     pl.add_argument("--fe", default=None, metavar="DIR", help="FE cases to overlay")
     pl.add_argument("--out", required=True, metavar="PNG", help="PNG to write")
-    _add_simulate_parser(sub)
-    _add_tune_parser(sub)
-    _add_export_parser(sub)
-    # subcommands with their own parsers (main() hands them the rest of the command line)
-    sub.add_parser(
-        "diagnose",
-        add_help=False,
-        help="sim-to-real gap diagnosis of measured trials (grasprom diagnose -h)",
-    )
-    sub.add_parser(
-        "synth",
-        add_help=False,
-        help="synthetic 'real' trials with withheld effects (grasprom synth -h)",
-    )
-    return p
 
 
 def _delegated(name: str):
     """Entry point of a subcommand that parses its own arguments."""
-    if name == "diagnose":
-        from grasprom.gap import main_diagnose
-
-        return main_diagnose
-    from grasprom.gap import main_synth
-
-    return main_synth
+    return _main_diagnose if name == "diagnose" else _main_synth
 
 
 def _add_simulate_parser(sub) -> None:
@@ -674,6 +683,153 @@ def _cmd_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
         return 130
     print(summary(res))
     return 0
+
+
+# ---------------------------------------------------------------- diagnose, synth (own parsers)
+def _diagnose_parser() -> argparse.ArgumentParser:
+    """Argument parser of ``grasprom diagnose``."""
+    p = argparse.ArgumentParser(
+        prog="grasprom diagnose",
+        description="Diagnose the sim-to-real gap of measured grasp trials: where it lies, "
+        "which unmodelled effect causes it, how far it shrinks once added.",
+    )
+    p.add_argument("trials", nargs="+", metavar="TRIAL.csv", help="trial CSVs (sidecar .json)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--surrogate", default=None, metavar="FILE", help="surrogate JSON")
+    src.add_argument("--fe", default=None, metavar="DIR", help="FE sweep (default shipped)")
+    p.add_argument("--controller", default=None, metavar="FILE", help="controller JSON (chain)")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    return p
+
+
+def _cmd_diagnose(args: argparse.Namespace) -> int:
+    """Run ``grasprom diagnose`` on parsed arguments (see :func:`_main_diagnose`)."""
+    import warnings
+
+    from grasprom.chain import kinematics as kin
+    from grasprom.gap import diagnose, format_summary, load_trial, write_outputs
+    from grasprom.surrogate import load_surrogate
+
+    try:
+        if args.controller:
+            from grasprom.control import load_params
+
+            chain = load_params(args.controller).chain_params
+        else:
+            chain = kin.ChainParams()
+        surrogate = load_surrogate(args.surrogate, args.fe)
+        trials = [load_trial(t, chain, surrogate) for t in args.trials]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            diag = diagnose(trials, surrogate, chain)
+    except (OSError, ValueError) as exc:
+        print(f"grasprom diagnose: {exc}", file=sys.stderr)
+        return 2
+    write_outputs(diag, args.out, plots=not args.no_plots)
+    print(format_summary(diag.report))
+    print(f"\nwrote {Path(args.out) / 'report.json'} and {Path(args.out) / 'augmented_model.json'}")
+    return 0
+
+
+def _main_diagnose(argv: Sequence[str] | None = None) -> int:
+    """``grasprom diagnose TRIAL.csv... --out DIR [--surrogate F | --fe DIR] [--controller F]``.
+
+    Returns
+    -------
+    int
+        Exit code: 0 ok, 2 bad input (message naming file/row/column on stderr).
+    """
+    return _cmd_diagnose(_diagnose_parser().parse_args(argv))
+
+
+def _synth_parser() -> argparse.ArgumentParser:
+    """Argument parser of ``grasprom synth``."""
+    from grasprom.gap import SYNTH_EFFECTS
+
+    p = argparse.ArgumentParser(
+        prog="grasprom synth",
+        description="Synthesise 'real' grasp trials: baseline model + withheld effect(s) + noise.",
+    )
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    p.add_argument(
+        "--effect",
+        default="",
+        metavar="NAME[,NAME]",
+        help=f"effect(s) to add (none = noise only); from {','.join(SYNTH_EFFECTS)}",
+    )
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--trials", type=int, default=4, help="number of trials (default 4)")
+    p.add_argument("--material", default=None, help="mr, nh or le (default random)")
+    p.add_argument("--no-jaw-cell", action="store_true", help="omit the force_jaw_N channel")
+    p.add_argument(
+        "--gap-channel",
+        action="store_true",
+        help="add a measured jaw gap gap_mm (laser sensor at the jaw tips, 5-10 um rms)",
+    )
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--surrogate", default=None, metavar="FILE", help="surrogate JSON")
+    src.add_argument("--fe", default=None, metavar="DIR", help="FE sweep (default shipped)")
+    return p
+
+
+def _synth_args_error(names: list[str], n_trials: int) -> str | None:
+    """What is wrong with the effect names / trial count of ``grasprom synth`` (None: fine)."""
+    from grasprom.gap import SYNTH_EFFECTS
+
+    bad = [e for e in names if e not in SYNTH_EFFECTS]
+    if bad:
+        return f"unknown effect(s) {', '.join(bad)}; valid: {', '.join(SYNTH_EFFECTS)}"
+    if len(set(names)) != len(names) or len(names) > 2:
+        return "give at most two distinct effects"
+    if n_trials < 1:
+        return "--trials must be >= 1"
+    return None
+
+
+def _cmd_synth(args: argparse.Namespace) -> int:
+    """Run ``grasprom synth`` on parsed arguments (see :func:`_main_synth`)."""
+    names = [e.strip() for e in args.effect.split(",") if e.strip()]
+    err = _synth_args_error(names, args.trials)
+    if err is not None:
+        print(f"grasprom synth: {err}", file=sys.stderr)
+        return 2
+    from grasprom.gap import synth_case, write_case
+    from grasprom.surrogate import load_surrogate
+
+    try:
+        surrogate = load_surrogate(args.surrogate, args.fe)
+        case = synth_case(
+            names,
+            seed=args.seed,
+            n_trials=args.trials,
+            surrogate=surrogate,
+            material=args.material,
+            jaw_load_cell=not args.no_jaw_cell,
+            gap_channel=args.gap_channel,
+        )
+    except (OSError, ValueError) as exc:
+        print(f"grasprom synth: {exc}", file=sys.stderr)
+        return 2
+    paths = write_case(case, args.out)
+    print(
+        f"wrote {len(paths)} trial(s) to {args.out} (effects withheld in truth.json: "
+        f"{', '.join(names) or 'none'})"
+    )
+    return 0
+
+
+def _main_synth(argv: Sequence[str] | None = None) -> int:
+    """``grasprom synth --out DIR [--effect NAME[,NAME]] [--seed N] [--trials N] [--gap-channel]``.
+
+    Writes synthetic trials (CSV + JSON sidecars) and the withheld ``truth.json`` into ``DIR``.
+
+    Returns
+    -------
+    int
+        Exit code: 0 ok, 2 bad input (message on stderr).
+    """
+    return _cmd_synth(_synth_parser().parse_args(argv))
 
 
 def cli_reference(width: int = 100) -> str:
