@@ -8,7 +8,7 @@ Usage::
 The effect is hidden from the diagnosis (it only reads the trial CSVs and sidecars); the truth is
 printed at the end for comparison.  One more trial of the same case is synthesised and *not*
 given to the diagnosis: its measured handle angle drives
-:func:`grasprom.control.controller.simulate` twice, with the plain controller and with the
+:func:`grasprom.control.simulate` twice, with the plain controller and with the
 augmented model rendered
 (:func:`grasprom.gap.controller_params_from_augmented`; stiff coupling, no damping, no
 encoder, so that the controller reproduces the static chain), and the RMS of simulated -

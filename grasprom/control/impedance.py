@@ -35,7 +35,7 @@ One step, at the sample time ``T`` (default 1 ms, 1 kHz):
    contact is narrower, so the force threshold is the binding one there.
 
 Rendered instrument effects (the augmented model of ``grasprom diagnose``, mapped by
-:func:`grasprom.gap.diagnosis.controller_params_from_augmented`; every one is off at its
+:func:`grasprom.gap.controller_params_from_augmented`; every one is off at its
 default, and the step is then bit-identical to the one without them):
 
 * **Backlash** ``backlash_deg`` (total play width ``b``): between the encoder and the linkage sits

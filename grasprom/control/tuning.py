@@ -10,7 +10,7 @@ closed-loop poles from :mod:`~grasprom.control.loop`, the time-domain check of
 :mod:`~grasprom.control.plots` and the files in :mod:`~grasprom.control.outputs`.
 
 Rendered instrument effects (``ControllerParams`` fields set from a ``grasprom diagnose``
-augmented model, :func:`grasprom.gap.diagnosis.controller_params_from_augmented`)
+augmented model, :func:`grasprom.gap.controller_params_from_augmented`)
 --------------------------------------------------------------------------------------------
 * ``tissue_scale`` scales the tissue force and stiffness everywhere (static map and ``K``).
 * ``jaw_compliance_mm_per_N`` ``C`` is in series with the coupling: the rendered jaw stiffness

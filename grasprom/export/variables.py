@@ -581,5 +581,5 @@ OUTPUT_COLUMNS: dict[str, tuple[str, float | None]] = {
     for s in SPECS
     if s.causality == "output"
 }
-"""FMU output -> (column of :func:`~grasprom.control.controller.simulate`, factor to SI;
+"""FMU output -> (column of :func:`~grasprom.control.simulate`, factor to SI;
 None: Boolean)."""

@@ -150,7 +150,7 @@ class CaseSpec:
     Parameters
     ----------
     material : str
-        ``mr``, ``nh`` or ``le`` (see :mod:`grasprom.materials`).
+        ``mr``, ``nh`` or ``le`` (see :mod:`grasprom.fe.materials`).
     thickness_mm : float
         Wall thickness (mm).
     diameter_mm : float

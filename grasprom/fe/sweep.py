@@ -6,7 +6,7 @@ Typical use (the grid comes from :mod:`grasprom.fe.grid`)::
     summary = run_sweep(specs, "fe_data/mine", workers=2)
 
 Each finished case is written atomically by the parent process as soon as it completes
-(see :mod:`grasprom.datafiles`), so killing a sweep loses no finished case and rerunning
+(see :mod:`grasprom.fe.datafiles`), so killing a sweep loses no finished case and rerunning
 the same command skips them. Cases run in a local process pool, in-process
 (``workers=1``) or on an existing Dask distributed cluster (``scheduler="tcp://..."``).
 

@@ -19,7 +19,7 @@
    With ``fast`` the simavr cycle count and the host error run are skipped; flash and RAM are
    still measured when avr-gcc is installed.
 5. ``cosim`` -- a grasp-hold-release through the FMI 2 FMU with fmpy: the handle (inertia and
-   viscous friction of :class:`~grasprom.control.tuning.DeviceParams`, end stops) is squeezed by a
+   viscous friction of :class:`~grasprom.control.DeviceParams`, end stops) is squeezed by a
    hand
    force profile and pushed back by the motor torque; the FMU's torque is compared with the
    Python reference controller replayed on the same angles.  Writes ``cosim.csv`` and

@@ -169,7 +169,7 @@ def cosimulate(
     semi-implicit Euler at
     ``substeps`` per controller step; the FMU is stepped at its sample time with the angle at
     the communication point.  The Python
-    :class:`~grasprom.control.controller.ImpedanceController` is
+    :class:`~grasprom.control.ImpedanceController` is
     stepped on the same angles for comparison.
 
     Parameters

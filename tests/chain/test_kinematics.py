@@ -1,4 +1,4 @@
-"""Tests of the grasper kinematic chain (grasprom.kinematics)."""
+"""Tests of the grasper kinematic chain (grasprom.chain.kinematics)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Passivity tuning (grasprom.tuning, ``grasprom tune``)."""
+"""Passivity tuning (grasprom.control.tuning, ``grasprom tune``)."""
 
 from __future__ import annotations
 
