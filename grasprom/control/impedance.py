@@ -77,6 +77,7 @@ import math
 from typing import NamedTuple
 
 from grasprom.chain import kinematics as kin
+from grasprom.control.field import Field, build_field
 from grasprom.control.params import ControllerParams
 from grasprom.surrogate import Surrogate
 
@@ -203,7 +204,25 @@ class ImpedanceController:
         self._pa = [math.exp(-params.sample_time_s / tau) for tau in params.prony_tau_s]
         self._np = len(params.prony_g)
         self._fric = params.friction_rendered
+        self._field = self._build_field() if params.rendering == "clipped" else None
         self.reset()
+
+    def _build_field(self) -> Field:
+        """The stiffness-clipped field of this case (:mod:`grasprom.control.field`)."""
+        p = self.params
+        return build_field(
+            lambda g: self._tissue(g)[0],
+            self._chain,
+            p.stiffness_limit_Nm_per_rad,
+            render_spring=p.render_spring,
+            compliance_mm_per_N=p.jaw_compliance_mm_per_N,
+            prony_factor=1.0 + sum(p.prony_g),
+        )
+
+    @property
+    def field(self) -> Field | None:
+        """The tabulated field of the clipped rendering (None with the coupling)."""
+        return self._field
 
     @property
     def encoder_quantum_rad(self) -> float:
@@ -258,7 +277,10 @@ class ImpedanceController:
         g = kin.gap_mm(thc_deg, self._chain)
         f_g = self._tissue(g)[0]
         contact = f_g > 0.0
-        if contact:
+        if self._field is not None:
+            fg, coupling_active = self._field.jaw_force_N(thc)
+            gp = g
+        elif contact:
             gp, fg, coupling_active = self._couple(g, f_g)
         else:
             gp, fg, coupling_active = g, 0.0, False

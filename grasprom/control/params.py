@@ -22,6 +22,7 @@ from grasprom.fe import MATERIAL_NAMES
 __all__ = [
     "CONTROLLER_FILE_VERSION",
     "MAX_PRONY_TERMS",
+    "RENDERINGS",
     "ControllerParams",
     "load_params",
     "params_from_dict",
@@ -48,8 +49,12 @@ _POSITIVE_FIELDS = (
     "diameter_mm",
     "tissue_scale",
     "friction_velocity_threshold_mm_per_s",
+    "stiffness_limit_Nm_per_rad",
 )
 """Numeric fields that must be finite and > 0."""
+
+RENDERINGS = ("coupling", "clipped")
+"""Rendering schemes of the tissue (``ControllerParams.rendering``)."""
 
 _NON_NEGATIVE_RATES = ("spring_k_N_per_mm", "damping_Nms_per_rad")
 """Spring rate and virtual damping: finite and >= 0."""
@@ -133,6 +138,16 @@ class ControllerParams:
         :data:`MAX_PRONY_TERMS`; the instantaneous stiffness is ``1 + sum g_i`` times the relaxed.
     prony_tau_s : tuple of float
         Relaxation times ``tau_i`` (s, > 0), as many as ``prony_g``.
+    rendering : str
+        How the tissue is rendered: ``"coupling"`` (a virtual coupling ``k_c`` in series with
+        the tissue, solved for a proxy gap each step) or ``"clipped"`` (the tissue's own
+        force-angle curve wherever its handle stiffness is below ``stiffness_limit_Nm_per_rad``
+        and the stiffest passive wall beyond, tabulated along the angle:
+        :mod:`grasprom.control.field`).
+    stiffness_limit_Nm_per_rad : float
+        ``K_lim`` of the clipped rendering: the largest handle stiffness rendered (N m/rad at
+        the pivot, > 0).  Default 6.2: the passive bound of the default device (b = 0.01 N m s/rad
+        with a safety factor of 1.25, one sample of delay, the default ``B`` and cutoff) at 1 kHz.
     """
 
     thickness_mm: float = 1.4
@@ -160,9 +175,12 @@ class ControllerParams:
     friction_velocity_threshold_mm_per_s: float = 2.0
     prony_g: tuple[float, ...] = ()
     prony_tau_s: tuple[float, ...] = ()
+    rendering: str = "coupling"
+    stiffness_limit_Nm_per_rad: float = 6.2
 
     def __post_init__(self) -> None:
         _check_material(self)
+        _check_rendering(self)
         _check_scalars(self)
         _normalise_prony(self)
         _check_prony(self)
@@ -198,6 +216,15 @@ def _check_material(p: ControllerParams) -> None:
     """The material must be one of the FE materials."""
     if p.material not in MATERIAL_NAMES:
         raise ValueError(f"material {p.material!r} unknown; valid: {', '.join(MATERIAL_NAMES)}")
+
+
+def _check_rendering(p: ControllerParams) -> None:
+    """The rendering must be one of :data:`RENDERINGS`."""
+    if p.rendering not in RENDERINGS:
+        raise ValueError(
+            f"controller parameter rendering {p.rendering!r} unknown; "
+            f"valid: {', '.join(RENDERINGS)}"
+        )
 
 
 def _check_scalars(p: ControllerParams) -> None:

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from grasprom.chain import kinematics as kin
+from grasprom.control.field import jaw_stiffness_limit_N_per_mm
 from grasprom.control.impedance import ImpedanceController, StepOutput
 from grasprom.control.params import ControllerParams
 from grasprom.surrogate import Surrogate
@@ -50,8 +51,13 @@ SIMULATION_COLUMNS = (
     "theta_clamped",
     "theta_chain_deg",
     "force_handle_friction_N",
+    "tissue_stiffness_N_per_mm",
+    "stiffness_limit_N_per_mm",
 )
-"""Columns of :func:`simulate`: ``time_s`` and the :class:`StepOutput` fields (units in names)."""
+"""Columns of :func:`simulate`: ``time_s``, the :class:`StepOutput` fields (units in names), the
+tissue stiffness ``-dF/dgap`` at the kinematic gap (N/mm, scaled like the force) and the
+rendering's bound on the jaw stiffness at the chain angle
+(:func:`~grasprom.control.field.jaw_stiffness_limit_N_per_mm`, N/mm)."""
 
 
 def validate_trajectory(
@@ -139,6 +145,12 @@ def simulate(
     rows = [ctl.step(math.radians(x)) for x in theta]
     out = pd.DataFrame(rows, columns=StepOutput._fields)
     out.insert(0, "time_s", ticks)
+    gap = out["gap_mm"].to_numpy()
+    k_t = surrogate.stiffness(gap, params.thickness_mm, params.material)
+    out["tissue_stiffness_N_per_mm"] = np.asarray(k_t, dtype=float) * params.tissue_scale
+    out["stiffness_limit_N_per_mm"] = jaw_stiffness_limit_N_per_mm(
+        params, out["theta_chain_deg"].to_numpy()
+    )
     return out[list(SIMULATION_COLUMNS)]
 
 
