@@ -5,7 +5,10 @@ bytes and grid nodes, flash and RAM of tables + core on the ATmega328P (avr-gcc 
 cycles per controller step under simavr (max and mean over every material at four thicknesses
 on a closing/opening sweep of every encoder count), and the error against the float Python
 reference (handle force in % of the full-scale handle force, jaw force in % of the jaw-force
-full scale) over every material, every thickness node and midpoint, every count.  Then the
+full scale, and, issue 17, in % of the rendered range: the largest |handle force| the reference
+renders on the vectors) over every material, every thickness node and midpoint, every count,
+for the virtual-coupling rendering (default) and the stiffness-clipped one
+(``rendering="clipped"``, :mod:`grasprom.control.field`).  Then the
 other build options of the same core (``grasp_core.c``): the tabulated step in float
 (``GF_FLOAT``) at the default tolerance, and the run-time step -- the FMU's -- compiled by avr-gcc
 (float, surrogate curves in flash), on three materials/thicknesses.
@@ -39,9 +42,11 @@ def row(sur: Surrogate, params: ControllerParams, tol: float, fixed: bool, tmp: 
         err = ar.error_figures(t, sur, cases, avr.run)
     nodes = "/".join(str(len(m.x)) for m in t.materials)
     return (
-        f"{'fixed' if fixed else 'float':>5} {100 * tol:6.2f} {t.table_bytes:7d} {nodes:>9} "
+        f"{params.rendering[:4]:>4} {'fixed' if fixed else 'float':>5} {100 * tol:6.2f} "
+        f"{t.table_bytes:7d} {nodes:>9} "
         f"{size.flash_B:7d} {size.ram_B:5d} {int(avr.cycles.max()):7d} "
-        f"{avr.cycles.mean():7.0f} {err.handle_pct_fs:9.3f} {err.jaw_pct_fs:9.3f}"
+        f"{avr.cycles.mean():7.0f} {err.handle_pct_fs:9.3f} {err.handle_pct_rendered:7.3f} "
+        f"{err.jaw_pct_fs:9.3f}"
     )
 
 
@@ -55,11 +60,17 @@ def main(argv: list[str]) -> None:
         f"budget: flash {ar.FLASH_BUDGET_B} B, RAM {ar.RAM_BUDGET_B} B, "
         f"{ar.CYCLE_BUDGET} cycles/step, handle-force error {100 * ar.ERROR_BUDGET:g} % FS"
     )
-    print(" core  tol%  tableB  nodes m/n/l  flashB  ramB  cycmax cycmean handle%FS  jaw%jawFS")
+    print(
+        "rend  core  tol%  tableB  nodes m/n/l  flashB  ramB  cycmax cycmean handle%FS"
+        " %rendrg  jaw%jawFS"
+    )
+    clipped = ControllerParams(rendering="clipped")
     with tempfile.TemporaryDirectory() as tmp:
         for i, tol in enumerate((0.0025, 0.005, 0.01, 0.02)):
             print(row(sur, params, tol, True, Path(tmp) / f"fx{i}"), flush=True)
         print(row(sur, params, 0.01, False, Path(tmp) / "fl"), flush=True)
+        for i, tol in enumerate((0.0025, 0.005, 0.01, 0.02)):
+            print(row(sur, clipped, tol, True, Path(tmp) / f"cl{i}"), flush=True)
         t = ar.build_tables(sur, params, 0.01)
         counts = ar.sweep_counts(t, 9)
         cases = [
@@ -85,6 +96,8 @@ def main(argv: list[str]) -> None:
                 prony_g=(0.3, 0.2), prony_tau_s=(0.2, 1.0), tissue_scale=1.3
             ),
         }  # fmt: skip
+        aug["all + clipped rendering"] = {**aug["all of these + scale 1.3"], **dict(
+            rendering="clipped", jaw_compliance_mm_per_N=0.01)}  # fmt: skip
         for i, (label, kw) in enumerate(aug.items()):
             pa = ControllerParams(**kw)
             ta = ar.build_tables(sur, pa, 0.01)
@@ -96,7 +109,8 @@ def main(argv: list[str]) -> None:
             print(
                 f"  {label:26s} flash {sz.flash_B:5d} B, RAM {sz.ram_B:4d} B, cycles max "
                 f"{int(run.cycles.max()):5d} mean {run.cycles.mean():5.0f}, handle error "
-                f"{ea.handle_pct_fs:.3f} % FS",
+                f"{ea.handle_pct_fs:.3f} % FS ({ea.handle_pct_rendered:.3f} % of the rendered "
+                f"{ea.rendered_max_N:.1f} N)",
                 flush=True,
             )
     print(f"({time.perf_counter() - t0:.1f} s)")

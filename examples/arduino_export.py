@@ -6,9 +6,11 @@ Builds the surrogate from the shipped sweep, writes ``--out/grasprom_controller/
 fixed-point core, PROGMEM tables, arduino-mk Makefile) and prints flash, RAM, cycles per step and
 the force error (measured with avr-gcc/avr-size, simavr and gcc when installed; a missing tool
 leaves its figure ``n/a``).  ``--fast`` skips the measurement (about 1 s instead of 4 s).
+``--rendering clipped`` exports the stiffness-clipped rendering (``grasprom.control.field``)
+instead of the virtual coupling.
 
     python examples/arduino_export.py --out /tmp/arduino [--thickness 1.4] [--material mr] \
-        [--controller build/controller.json] [--fast]
+        [--controller build/controller.json] [--rendering clipped] [--fast]
     cd /tmp/arduino/grasprom_controller && make          # needs arduino-mk
 """
 
@@ -32,6 +34,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--thickness", type=float, default=1.4, help="wall thickness, mm")
     ap.add_argument("--material", default="mr", help="mr, nh or le")
     ap.add_argument("--controller", type=Path, default=None, help="controller parameters JSON")
+    ap.add_argument(
+        "--rendering", choices=("coupling", "clipped"), default=None,
+        help="rendering scheme (default: that of the parameters)",
+    )  # fmt: skip
     ap.add_argument("--fast", action="store_true", help="write the package, do not measure")
     args = ap.parse_args(argv)
 
@@ -40,6 +46,8 @@ def main(argv: list[str] | None = None) -> int:
         sur = Surrogate.build(ROOT / "fe_data" / "default")
     base = load_params(args.controller) if args.controller else ControllerParams()
     params = dataclasses.replace(base, thickness_mm=args.thickness, material=args.material)
+    if args.rendering:
+        params = dataclasses.replace(params, rendering=args.rendering)
     res = export_arduino(args.out, surrogate=sur, params=params, measure=not args.fast)
     print(res.summary())
     return 0 if res.within_budget() else 1

@@ -6,6 +6,7 @@ CI installs gcc-avr avr-libc binutils-avr simavr libsimavr-dev arduino-mk arduin
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import shutil
@@ -153,7 +154,8 @@ def test_host_error_within_budget(surrogate, tables, host_dense):
     """Every angle, every material, thickness nodes and midpoints: error budget and tol."""
     cases, run = host_dense
     e = ar.error_figures(tables, surrogate, cases, run)
-    print(f"\nhandle-force error {e.handle_pct_fs:.3f} % FS, jaw {e.jaw_pct_fs:.3f} % of jaw FS, "
+    print(f"\nhandle-force error {e.handle_pct_fs:.3f} % FS ({e.handle_pct_rendered:.3f} % of the "
+          f"rendered {e.rendered_max_N:.2f} N), jaw {e.jaw_pct_fs:.3f} % of jaw FS, "
           f"flag mismatches {e.flag_mismatch} of {e.steps} steps")  # fmt: skip
     assert e.handle_pct_fs <= 100 * ar.ERROR_BUDGET
     assert e.jaw_pct_fs <= 100 * tables.tol * 1.5  # tol on the nodes, + thickness blending
@@ -281,3 +283,166 @@ def test_export_measures_the_budget(surrogate, tmp_path):
     assert res.within_budget()
     assert res.error_handle_pct_fs is not None and res.cycles_max is not None
     assert math.isfinite(res.jaw_fs_N) and res.jaw_fs_N > 0
+
+
+# ---------------------------------------------------------------- clipped rendering (issue 13)
+
+CLIPPED = dict(rendering="clipped")
+"""The stiffness-clipped rendering (grasprom.control.field) instead of the virtual coupling."""
+
+CLIPPED_CASES = (("mr", 1400), ("le", 2000))
+"""Operating cases the clipped export is checked on against the Python controller itself."""
+
+
+def controller_run(params, surrogate, material, thickness_um, counts, q):
+    """Handle force (N) and flags of ImpedanceController (double) on encoder counts."""
+    p = dataclasses.replace(params, material=material, thickness_mm=thickness_um / 1000.0)
+    ctl = ImpedanceController(p, surrogate)
+    out = [ctl.step(int(n) * q) for n in counts]
+    return np.array([o.force_handle_N for o in out]), out
+
+
+@pytest.fixture(scope="module")
+def clipped_tables(surrogate):
+    return ar.build_tables(surrogate, ControllerParams(**CLIPPED), 0.01)
+
+
+def test_clipped_tables_hold_the_field(surrogate, tables, clipped_tables):
+    """y[] nodes are the controller's field at the grid counts; 'active' = last clipped count."""
+    t = clipped_tables
+    p = t.params
+    assert (t.n_lo, t.n_top, t.n_contact) == (tables.n_lo, tables.n_top, tables.n_contact)
+    unit = (1 << t.fg_shift) * 1e-3
+    for m in t.materials:
+        for i, th_um in enumerate(m.thickness_um):
+            pm = ControllerParams(**{**CLIPPED, "material": m.name, "thickness_mm": th_um / 1e3})
+            field = ImpedanceController(pm, surrogate).field
+            assert field is not None
+            for x, y in zip(m.x, m.y[i]):
+                f = field.jaw_force_N(x * t.q_rad)[0] if x < t.n_contact else 0.0
+                assert abs(y * unit - f) <= 0.5 * unit + 1e-12, (m.name, th_um, x)
+            cl = [n for n in range(t.n_lo, t.n_contact) if field.jaw_force_N(n * t.q_rad)[1]]
+            assert m.active[i] == (max(cl) if cl else t.n_lo - 1)
+    nodes = {m.name: len(m.x) for m in t.materials}
+    print(f"\nclipped tables: nodes {nodes}, {t.table_bytes} B, jaw FS {t.jaw_fs_N:.3f} N "
+          f"(coupling: {{{', '.join(f'{m.name}: {len(m.x)}' for m in tables.materials)}}}, "
+          f"{tables.table_bytes} B, jaw FS {tables.jaw_fs_N:.3f} N)")  # fmt: skip
+    assert max(nodes.values()) <= 255 and t.table_bytes < 2 * tables.table_bytes
+    src, cfg = t.tables_source(), t.config_source()
+    assert "stiffness-clipped field" in src and "stiffness limit active" in src
+    assert f"stiffness limit {p.stiffness_limit_Nm_per_rad:g} N m/rad" in cfg
+    assert "rendering clipped" not in tables.config_source()
+    assert "kc (g_p - g)" in tables.tables_source() and "kc (g_p - g)" not in src
+
+
+@pytest.mark.parametrize("augmented", [False, True], ids=["plain", "augmented"])
+def test_clipped_reference_matches_the_python_controller(surrogate, tables, augmented):
+    """With the clipped rendering the vectorised reference is the controller (to rounding)."""
+    kw = {**CLIPPED, **(AUGMENTED if augmented else {})}
+    p = ControllerParams(material="mr", thickness_mm=1.5, **kw)
+    counts = ar.sweep_counts(tables)
+    ref = ar.reference_run(p, surrogate, "mr", 1.5, counts)
+    fi, out = controller_run(p, surrogate, "mr", 1500, counts, tables.q_rad)
+    assert np.max(np.abs(fi - ref.force_handle_N)) < 1e-9 * (1e3 if augmented else 1.0)
+    for name in ar.FLAG_NAMES:
+        got = np.array([getattr(o, name) for o in out])
+        assert np.sum(got != ref.flags[name]) == 0, name
+    assert np.any(ref.flags["coupling_active"])  # the stiffness limit acts near closure
+    coupling = ar.reference_run(ControllerParams(material="mr", thickness_mm=1.5,
+                                                 **(AUGMENTED if augmented else {})),
+                                surrogate, "mr", 1.5, counts)  # fmt: skip
+    assert np.max(np.abs(coupling.force_handle_N - ref.force_handle_N)) > 0.5  # N: it differs
+
+
+@pytest.mark.parametrize("augmented", [False, True], ids=["plain", "augmented"])
+def test_clipped_export_on_host_and_avr(surrogate, tmp_path, augmented):
+    """The clipped export: host (gcc) and AVR (simavr) bit for bit, within the error budget
+    against the reference and the Python controller itself, cycles, flash and RAM."""
+    need("gcc", "gcc")
+    kw = {**CLIPPED, **(AUGMENTED if augmented else {})}
+    p = ControllerParams(**kw)
+    t = ar.build_tables(surrogate, p, 0.01)
+    if augmented:
+        assert t.backlash_hb > 0 and t.friction and len(t.prony_g) == 2
+    counts = ar.sweep_counts(t)
+    own = [ar.VectorCase(m, th, counts) for m, th in CLIPPED_CASES]
+    cases = own + ar.default_cases(t, surrogate)
+    host = ar.run_host(t, cases, tmp_path / "host")
+    e = ar.error_figures(t, surrogate, cases, host)
+    fs = p.torque_limit_Nm / (p.pulley_radius_mm * 1e-3)
+    e_ctl = 0.0
+    for c, out in zip(own, host.outputs):  # against ImpedanceController itself
+        fi, _ = controller_run(p, surrogate, c.material, c.thickness_um, c.counts, t.q_rad)
+        e_ctl = max(e_ctl, float(np.max(np.abs(out["fi"] * 1e-3 - fi))) / fs * 100)
+    coupled = ar.build_tables(surrogate, ControllerParams(**{**kw, "rendering": "coupling"}))
+    e_cpl = ar.error_figures(t, surrogate, cases, ar.run_host(coupled, cases, tmp_path / "c"))
+    label = "augmented clipped" if augmented else "clipped"
+    print(f"\n{label} export: handle error {e.handle_pct_fs:.3f} % FS "
+          f"({e.handle_pct_rendered:.3f} % of the rendered {e.rendered_max_N:.2f} N), vs "
+          f"ImpedanceController on mr 1.4 / le 2.0 mm {e_ctl:.3f} % FS, jaw "
+          f"{e.jaw_pct_fs:.3f} % of jaw FS; coupling export against the clipped reference "
+          f"{e_cpl.handle_pct_fs:.2f} % FS; flags {e.flag_mismatch} of {e.steps}")  # fmt: skip
+    assert e.handle_pct_fs <= 100 * ar.ERROR_BUDGET
+    assert e_ctl <= 100 * ar.ERROR_BUDGET
+    assert e_cpl.handle_pct_fs > 100 * ar.ERROR_BUDGET  # the export renders the clipped field
+    for name in ("contact", "saturated", "theta_clamped"):
+        assert e.flag_mismatch[name] == 0, name
+    if not augmented:  # one threshold per node: exact but for thickness blending
+        assert e.flag_mismatch["coupling_active"] < 0.001 * e.steps
+    need("avr-gcc", "gcc-avr avr-libc")
+    need("avr-size", "binutils-avr")
+    need_simavr()
+    avr = ar.run_simavr(ar.build_avr_test(t, cases, tmp_path / "avr"), cases, tmp_path / "avr")
+    assert avr.run.raw == host.raw
+    sz = ar.measure_size(t, tmp_path / "size")
+    print(f"{label} export on the AVR: nodes {[len(m.x) for m in t.materials]}, cycles/step "
+          f"max {avr.cycles.max()} mean {avr.cycles.mean():.0f}, flash {sz.flash_B} B, RAM "
+          f"{sz.ram_B} B (static {sz.ram_static_B}, stack {sz.stack_B})")  # fmt: skip
+    if not augmented:  # the augmented step (backlash, friction, Prony) is over 1,600 cycles
+        assert avr.cycles.max() <= ar.CYCLE_BUDGET  # with either rendering (same step code)
+    assert sz.flash_B <= ar.FLASH_BUDGET_B and sz.ram_B <= ar.RAM_BUDGET_B
+
+
+@pytest.mark.parametrize("rendering", ["coupling", "clipped"])
+def test_error_against_the_rendered_range(surrogate, tmp_path, rendering):
+    """Issue 17: the handle-force error in % of the force range the device renders (the largest
+    |handle force| of the reference on the vectors), next to the % of the 100 N full scale.  The
+    default tolerance (1 %) is over the 0.5 % budget on that range; 0.5 % meets it."""
+    need("gcc", "gcc")
+    p = ControllerParams(rendering=rendering)
+    fs = p.torque_limit_Nm / (p.pulley_radius_mm * 1e-3)
+    figs = {}
+    for tol in (0.01, 0.005):
+        t = ar.build_tables(surrogate, p, tol)
+        cases = ar.default_cases(t, surrogate, dense=True)
+        e = ar.error_figures(t, surrogate, cases, ar.run_host(t, cases, tmp_path / f"{tol}"))
+        assert 0 < e.rendered_max_N < fs
+        assert e.handle_pct_rendered == pytest.approx(e.handle_pct_fs * fs / e.rendered_max_N)
+        figs[tol] = e
+        print(f"\n{rendering}, tol {tol:g}: nodes {[len(m.x) for m in t.materials]}, handle "
+              f"error {e.handle_pct_fs:.3f} % FS ({fs:g} N), {e.handle_pct_rendered:.3f} % of "
+              f"the rendered range {e.rendered_max_N:.2f} N")  # fmt: skip
+    assert figs[0.01].handle_pct_fs <= 100 * ar.ERROR_BUDGET
+    assert figs[0.005].handle_pct_rendered <= 100 * ar.ERROR_BUDGET
+
+
+def test_clipped_export_says_its_rendering_and_measures_the_budget(surrogate, tmp_path):
+    need("gcc", "gcc")
+    need("avr-gcc", "gcc-avr avr-libc")
+    need_simavr()
+    p = ControllerParams(material="le", thickness_mm=2.0, **CLIPPED)
+    res = ar.export_arduino(tmp_path, surrogate=surrogate, params=p)
+    print("\n" + res.summary())
+    sk = res.sketch_dir
+    ino = (sk / "grasprom_controller.ino").read_text()
+    readme = (sk / "README.md").read_text()
+    for text in (ino, readme):
+        assert "stiffness-clipped field" in text and "rendering='clipped'" in text
+        assert "virtual coupling (rendering='coupling'" not in text
+    assert "#define MATERIAL 2" in ino and "#define THICKNESS_UM 2000" in ino
+    assert "rendering clipped" in res.summary() and "rendered range" in res.summary()
+    assert res.rendering == "clipped" and res.notes == [] and res.within_budget()
+    assert res.error_handle_pct_rendered is not None and res.rendered_max_N is not None
+    plain = ar.export_arduino(tmp_path / "c", surrogate=surrogate, params=ControllerParams(),
+                              measure=False)  # fmt: skip
+    assert "virtual coupling (rendering='coupling'" in (plain.sketch_dir / "README.md").read_text()

@@ -16,22 +16,28 @@ FMU's core), with its build options (see ``grasp_core.h``):
 Measured with simavr (README, ``benchmarks/bench_arduino.py``): only the fixed-point build meets
 the 1,600-cycle budget, hence the default.  The tables:
 
-* the rendered jaw force through the virtual coupling, ``Fg = k_c (g_p - g)`` with the proxy
-  ``g_p`` solved *to convergence* on the float surrogate, along the handle angle (in encoder
-  counts) for every thickness node of every material, on a dyadic grid per material (segment
-  widths 2^k counts, chosen so that linear interpolation reproduces every curve within
-  ``tol`` of the jaw-force full scale, the largest jaw force the export renders); thickness is a
-  run-time parameter, blended linearly between nodes at ``gf_init()``;
+* the static rendered jaw force along the handle angle (in encoder counts) for every thickness
+  node of every material, on a dyadic grid per material (segment widths 2^k counts, chosen so
+  that linear interpolation reproduces every curve within ``tol`` of the jaw-force full scale,
+  the largest jaw force the export renders); thickness is a run-time parameter, blended
+  linearly between nodes at ``gf_init()``.  The curve is that of ``params.rendering``: with
+  ``"coupling"`` (default) the jaw force through the virtual coupling, ``Fg = k_c (g_p - g)``
+  with the proxy ``g_p`` solved *to convergence* on the float surrogate; with ``"clipped"`` the
+  stiffness-clipped field of :mod:`grasprom.control.field` (the tissue's static force, slopes
+  bounded by the stiffness limit, no coupling) at the count's angle;
 * the chain on a uniform grid: ``a = g'(theta) / L3`` (handle force per jaw force) and the
   return-spring handle force;
-* the flag thresholds (tissue warning, coupling active) in counts per thickness node.
+* the flag thresholds (tissue warning, coupling active) in counts per thickness node; with the
+  clipped rendering ``GF_COUPLING_ACTIVE`` means *stiffness limit active* (the field is
+  clipped).
 
 Error budget: the rendered handle force (= torque / pulley radius) of the fixed-point core
 against the Python reference on the float surrogate, in percent of the device's full-scale
 handle force ``torque_limit / pulley_radius`` (the force that saturates the motor), over every
 encoder position of the handle's range, every material and thicknesses on and between the
 nodes.  The jaw-force error in percent of the jaw-force full scale (the quantity ``tol``
-bounds on the thickness nodes) is reported too.
+bounds on the thickness nodes) is reported too, and the handle-force error in percent of the
+rendered range (the largest |handle force| the reference renders on the test vectors).
 
 The host build (gcc) of the same code gives bit-identical outputs to the AVR run (simavr),
 so most checks run on the host.
@@ -56,17 +62,22 @@ from grasprom.export.arduino.budget import (
 from grasprom.export.arduino.reference import (
     ReferenceRun,
     chain_terms,
+    clipped_field,
     coupled_jaw_force,
     encoder_quantum_rad,
+    field_jaw_force,
     reference_run,
+    rendered_jaw_force,
 )
 from grasprom.export.arduino.sketch import (
     MAKEFILE_TEMPLATE,
+    README_TEMPLATE,
     SKETCH_NAME,
     SKETCH_TEMPLATE,
     ArduinoExport,
     export_arduino,
     export_main,
+    rendering_description,
 )
 from grasprom.export.arduino.tables import (
     BUILD_HEADER,
@@ -121,6 +132,7 @@ __all__ = [
     "MaterialTable",
     "OUT_DTYPE",
     "RAM_BUDGET_B",
+    "README_TEMPLATE",
     "RT_OUT_DTYPE",
     "ReferenceRun",
     "RuntimeAvrRun",
@@ -133,15 +145,19 @@ __all__ = [
     "build_tables",
     "chain_terms",
     "clamp_thickness_cases",
+    "clipped_field",
     "coupled_jaw_force",
     "default_cases",
     "encoder_quantum_rad",
     "error_figures",
     "export_arduino",
     "export_main",
+    "field_jaw_force",
     "measure_size",
     "parse_output",
     "reference_run",
+    "rendered_jaw_force",
+    "rendering_description",
     "run_host",
     "run_runtime_avr",
     "run_simavr",

@@ -1,23 +1,28 @@
 """The Python reference of the Arduino export: the controller step on encoder counts, in double.
 
 What the tabulated fixed-point core (``GC_TABULATED``) must reproduce: the step of
-:class:`grasprom.control.ImpedanceController` with ``theta = count * q`` and the virtual
-coupling solved to convergence (:func:`coupled_jaw_force`).  The tables
+:class:`grasprom.control.ImpedanceController` with ``theta = count * q`` and, by
+``ControllerParams.rendering``, either the virtual coupling solved to convergence
+(:func:`coupled_jaw_force`, ``"coupling"``) or the stiffness-clipped field of
+:mod:`grasprom.control.field` interpolated at the chain angle (:func:`clipped_field`,
+:func:`field_jaw_force`, ``"clipped"``); :func:`rendered_jaw_force` dispatches.  The tables
 (:mod:`grasprom.export.arduino.tables`) and the error figures
 (:mod:`grasprom.export.arduino.budget`) are computed from it.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from grasprom.chain import kinematics as kin
-from grasprom.control import ControllerParams
+from grasprom.control import ControllerParams, ImpedanceController
+from grasprom.control.field import Field
 from grasprom.surrogate import Surrogate
 
 
@@ -74,6 +79,110 @@ def chain_terms(theta_rad: NDArray, chain: kin.ChainParams) -> tuple[NDArray, ND
     fs = chain.spring_preload_N + chain.spring_k_N_per_mm * u
     du = -d1 * c.stroke_sign
     return gap, c.gap_per_xc * d1 / chain.L3_mm, -fs * du / chain.L3_mm
+
+
+def clipped_field(
+    params: ControllerParams, surrogate: Surrogate, material: str, thickness_mm: float
+) -> Field:
+    """The stiffness-clipped field of one operating case, as the Python controller builds it.
+
+    ``ImpedanceController(params', surrogate).field`` with ``params'`` = ``params`` at this
+    material and thickness (clamped into the surrogate's range, as ``gf_init`` clamps it) and
+    ``rendering = "clipped"``.
+
+    Parameters
+    ----------
+    params : ControllerParams
+    surrogate : Surrogate
+    material : str
+    thickness_mm : float
+
+    Returns
+    -------
+    Field
+    """
+    lo, hi = surrogate.thickness_range(material)
+    t = min(max(float(thickness_mm), lo), hi)
+    return _cached_field(replace(params, material=material, thickness_mm=t), surrogate)
+
+
+@functools.lru_cache(maxsize=256)
+def _cached_field(params: ControllerParams, surrogate: Surrogate) -> Field:
+    """``ImpedanceController(params, surrogate).field``, memoised (tables and error figures
+    build the field of a case several times; with a jaw compliance each costs a bisection per
+    node)."""
+    f = ImpedanceController(replace(params, rendering="clipped"), surrogate).field
+    if f is None:  # pragma: no cover - rendering "clipped" always builds the field
+        raise RuntimeError("the clipped controller built no field")
+    return f
+
+
+def field_jaw_force(field: Field, theta_rad: NDArray) -> tuple[NDArray, NDArray]:
+    """:meth:`Field.jaw_force_N` on an array of chain angles (rad), vectorised.
+
+    Same operations in the same order as the scalar method (bit-identical in double).
+
+    Parameters
+    ----------
+    field : Field
+    theta_rad : ndarray
+        Chain angles (rad).
+
+    Returns
+    -------
+    (ndarray, ndarray)
+        Rendered jaw force (N) and whether the interval is clipped (the stiffness limit acts).
+    """
+    th = np.asarray(theta_rad, dtype=float)
+    fr = np.asarray(field.force_jaw_N, dtype=float)
+    cl = np.asarray(field.clipped, dtype=bool)
+    u = (th - field.theta_lo_rad) / field.dtheta_rad
+    j = np.clip(np.floor(u).astype(np.int64), 0, len(fr) - 2)
+    w = u - j
+    f0 = fr[j]
+    return f0 + w * (fr[j + 1] - f0), cl[j] | cl[j + 1]
+
+
+def rendered_jaw_force(
+    params: ControllerParams,
+    surrogate: Surrogate,
+    material: str,
+    thickness_mm: float,
+    theta_rad: NDArray,
+) -> tuple[NDArray, NDArray, NDArray]:
+    """Static rendered jaw force at chain angles, by ``params.rendering`` (vectorised).
+
+    ``"coupling"``: :func:`coupled_jaw_force` (proxy to convergence); ``"clipped"``: the
+    field of :func:`clipped_field` at the angles (:func:`field_jaw_force`).  Before the
+    Prony series, friction, spring and damping.
+
+    Parameters
+    ----------
+    params : ControllerParams
+    surrogate : Surrogate
+    material : str
+    thickness_mm : float
+    theta_rad : ndarray
+        Chain angles (rad, in the chain's range).
+
+    Returns
+    -------
+    (ndarray, ndarray, ndarray)
+        Jaw force (N); the flag ``coupling_active`` (coupling: tissue stiffer than the
+        coupling at the proxy, in contact; clipped: the stiffness limit acts); the proxy gap
+        (mm; the kinematic gap with the clipped rendering).
+    """
+    th = np.asarray(theta_rad, dtype=float)
+    gap, _, _ = chain_terms(th, params.chain_params)
+    if params.rendering == "clipped":
+        fg, active = field_jaw_force(clipped_field(params, surrogate, material, thickness_mm), th)
+        return fg, active, gap
+    sc = params.tissue_scale
+    kc = params.coupling_effective_N_per_mm
+    fg, gp = coupled_jaw_force(surrogate, gap, thickness_mm, material, kc, sc)
+    f_t = sc * surrogate.force(gap, thickness_mm, material)
+    active = (f_t > 0.0) & (sc * surrogate.stiffness(gp, thickness_mm, material) > kc)
+    return fg, active, gp
 
 
 def encoder_quantum_rad(params: ControllerParams) -> float:
@@ -208,11 +317,13 @@ def reference_run(
     thickness_mm: float,
     counts: Sequence[int] | NDArray,
 ) -> ReferenceRun:
-    """The Python reference (double, float surrogate, converged coupling) on encoder counts.
+    """The Python reference (double, float surrogate) on encoder counts.
 
     Same step as :meth:`grasprom.control.ImpedanceController.step` with ``theta = count *
-    q``, except that the coupling proxy is solved to convergence (the controller's warm-started
-    Newton iterations converge to it on any realistic trajectory; see the tests).
+    q``; with the coupling rendering the proxy is solved to convergence (the controller's
+    warm-started Newton iterations converge to it on any realistic trajectory; see the tests),
+    with the clipped rendering the jaw force is the controller's own field at the chain angle
+    (:func:`rendered_jaw_force`).
 
     Parameters
     ----------
@@ -240,10 +351,8 @@ def reference_run(
     gap, ca, cb = chain_terms(thc, chain)
     sc = params.tissue_scale
     f_t = sc * surrogate.force(gap, thickness_mm, material)
-    kc = params.coupling_effective_N_per_mm
-    fg, gp = coupled_jaw_force(surrogate, gap, thickness_mm, material, kc, sc)
+    fg, active, _gp = rendered_jaw_force(params, surrogate, material, thickness_mm, thc)
     contact = f_t > 0.0
-    k_p = sc * surrogate.stiffness(gp, thickness_mm, material)
     fg = prony_rendered(fg, params)
     fi = fg * ca + (cb if params.render_spring else 0.0)
     if params.friction_rendered:
@@ -264,7 +373,7 @@ def reference_run(
         flags={
             "contact": contact,
             "tissue_warning": warn,
-            "coupling_active": contact & (k_p > kc),
+            "coupling_active": active,
             "saturated": sat,
             "theta_clamped": clamped,
         },

@@ -4,12 +4,19 @@
 step computes with trigonometry and Newton iterations, tabulated along the handle angle in
 encoder counts:
 
-* the rendered jaw force through the virtual coupling, ``Fg = k_c (g_p - g)`` with the proxy
-  ``g_p`` solved *to convergence* on the float surrogate, for every thickness node of every
+* the static rendered jaw force of ``params.rendering``, for every thickness node of every
   material, on a dyadic grid per material (segment widths 2^k counts, chosen so that linear
-  interpolation reproduces every curve within ``tol`` of the jaw-force full scale);
+  interpolation reproduces every curve within ``tol`` of the jaw-force full scale):
+
+  - ``"coupling"`` (default): through the virtual coupling, ``Fg = k_c (g_p - g)`` with the
+    proxy ``g_p`` solved *to convergence* on the float surrogate;
+  - ``"clipped"``: the stiffness-clipped field of :mod:`grasprom.control.field` of the thickness
+    node (``ImpedanceController(params at that thickness, surrogate).field``) at the count's
+    angle, ``field.jaw_force_N(count * q)``;
+
 * the chain on a uniform grid: ``a = g'(theta) / L3`` and the return-spring handle force;
-* the flag thresholds (tissue warning, coupling active) in counts per thickness node;
+* the flag thresholds (tissue warning; coupling active, which with the clipped rendering means
+  *stiffness limit active*, ``GF_COUPLING_ACTIVE``) in counts per thickness node;
 * the scalar gains and the constants of the augmented rendering (backlash, friction, Prony).
 
 :class:`FixedTables` renders them as ``grasp_fixed_config.h`` / ``grasp_fixed_tables.h``;
@@ -29,7 +36,11 @@ from numpy.typing import NDArray
 
 from grasprom.chain import kinematics as kin
 from grasprom.control import ControllerParams
-from grasprom.export.arduino.reference import chain_terms, coupled_jaw_force, encoder_quantum_rad
+from grasprom.export.arduino.reference import (
+    chain_terms,
+    encoder_quantum_rad,
+    rendered_jaw_force,
+)
 from grasprom.export.codegen import CORE_SOURCES, c_decimal
 from grasprom.export.variables import PRONY_MAX
 from grasprom.fe import MATERIAL_NAMES
@@ -107,6 +118,17 @@ class FixedTables:
             n += 3 * len(m.x) - 1 + 2 * len(m.thickness_um) * (3 + len(m.x)) + 18
         return n
 
+    @property
+    def rendering_text(self) -> str:
+        """Short description of the rendering the tables hold (for comments and summaries)."""
+        p = self.params
+        if p.rendering == "clipped":
+            return (
+                f"rendering clipped (stiffness limit {p.stiffness_limit_Nm_per_rad:g} N m/rad, "
+                "no coupling)"
+            )
+        return f"coupling {p.coupling_stiffness_N_per_mm:g} N/mm"
+
     def config_source(self) -> str:
         """C source of ``grasp_fixed_config.h`` (scalar constants)."""
         p = self.params
@@ -115,7 +137,7 @@ class FixedTables:
             f" * Export: tol {self.tol:g} (jaw-force table tolerance, fraction of the jaw-force "
             f"full scale {self.jaw_fs_N:.6g} N), surrogate FE hash {self.fe_hash}.",
             f" * Controller: pulley {p.pulley_radius_mm:g} mm, torque limit "
-            f"{p.torque_limit_Nm:g} N m, coupling {p.coupling_stiffness_N_per_mm:g} N/mm,",
+            f"{p.torque_limit_Nm:g} N m, {self.rendering_text},",
             f" *   spring {p.spring_k_N_per_mm:g} N/mm (render {int(p.render_spring)}), damping "
             f"{p.damping_Nms_per_rad:g} N m s/rad, velocity cutoff {p.velocity_cutoff_Hz:g} Hz,",
             f" *   sample time {p.sample_time_s:g} s, encoder {p.encoder_counts_per_rev} "
@@ -174,6 +196,25 @@ class FixedTables:
         ]
         return "\n".join(lines) + "\n"
 
+    def _y_doc(self) -> list[str]:
+        """Comment lines of ``grasp_fixed_tables.h`` on the node values and thresholds."""
+        if self.params.rendering == "clipped":
+            return [
+                " *   t: thickness nodes, um; y: rendered jaw force of the stiffness-clipped field",
+                " *   (grasprom.control.field, stiffness limit "
+                f"{self.params.stiffness_limit_Nm_per_rad:g} N m/rad, no virtual coupling) at",
+                " *   the count's angle, units 2^GF_FG_SHIFT mN, one row of nx values per",
+                " *   thickness (jaw force 0 for n >= GF_N_CONTACT);",
+                " *   warn / active: largest count with tissue warning / stiffness limit active",
+                " *   (flag GF_COUPLING_ACTIVE: the field is clipped) per",
+            ]
+        return [
+            " *   t: thickness nodes, um; y: rendered jaw force kc (g_p - g) with the proxy g_p",
+            " *   solved to convergence on the float surrogate, units 2^GF_FG_SHIFT mN, one row",
+            " *   of nx values per thickness (jaw force 0 for n >= GF_N_CONTACT);",
+            " *   warn / active: largest count with tissue warning / coupling active per",
+        ]
+
     def tables_source(self) -> str:
         """C source of ``grasp_fixed_tables.h`` (PROGMEM tables, included by grasp_core.c)."""
         p = self.params
@@ -197,10 +238,7 @@ class FixedTables:
             f" *   gf_ch_b = return-spring handle force, mN (spring {p.spring_k_N_per_mm:g} N/mm, "
             f"preload {p.chain.spring_preload_N:g} N).",
             " * Per material (dyadic grid x, segment [x[i], x[i+1]) of width 2^k[i] counts):",
-            " *   t: thickness nodes, um; y: rendered jaw force kc (g_p - g) with the proxy g_p",
-            " *   solved to convergence on the float surrogate, units 2^GF_FG_SHIFT mN, one row",
-            " *   of nx values per thickness (jaw force 0 for n >= GF_N_CONTACT);",
-            " *   warn / active: largest count with tissue warning / coupling active per",
+            *self._y_doc(),
             f" *   thickness (GF_N_LO - 1 = never).  Grid tolerance {self.tol:g} x "
             f"{self.jaw_fs_N:.6g} N (jaw-force full scale).",
             " */",
@@ -219,7 +257,8 @@ class FixedTables:
             flat = [v for row in m.y for v in row]
             out.append(arr("uint16_t", f"{nm}_y", flat, f"{m.name}: jaw force, rows by thickness"))
             out.append(arr("int16_t", f"{nm}_warn", m.warn, f"{m.name}: tissue-warning counts"))
-            out.append(arr("int16_t", f"{nm}_active", m.active, f"{m.name}: coupling-active"))
+            act = "stiffness-limit-active" if p.rendering == "clipped" else "coupling-active"
+            out.append(arr("int16_t", f"{nm}_active", m.active, f"{m.name}: {act}"))
             descs.append(
                 f"    {{{nm}_x, {nm}_k, {nm}_t, {nm}_y, {nm}_warn, {nm}_active, {len(m.x)}, "
                 f"{len(m.thickness_um)}}}"
@@ -285,10 +324,15 @@ class _RawCurves:
 def _jaw_force_curves(
     surrogate: Surrogate, params: ControllerParams, q: float, n_lo: int, n_contact: int
 ) -> tuple[list[_RawCurves], float]:
-    """Coupled jaw force per material and thickness node, flag thresholds, and the largest
-    jaw force (N, the jaw-force full scale)."""
+    """Rendered jaw force per material and thickness node, flag thresholds, and the largest
+    jaw force (N, the jaw-force full scale).
+
+    The jaw force is the static one of ``params.rendering`` (:func:`rendered_jaw_force`:
+    the converged coupling, or the clipped field of the thickness node); ``active`` is the
+    largest count where the reference's ``coupling_active`` holds (coupling: tissue stiffer
+    than the coupling; clipped: the stiffness limit acts).
+    """
     chain = params.chain_params
-    kc = params.coupling_effective_N_per_mm  # in series with a rendered jaw compliance
     sc = params.tissue_scale
     cn = np.arange(n_lo, n_contact + 1)
     g_c, _, _ = chain_terms(cn * q, chain)
@@ -298,13 +342,13 @@ def _jaw_force_curves(
         ts = surrogate.thicknesses(name)
         rows, warn, active = [], [], []
         for t in ts:
-            fg, gp = coupled_jaw_force(surrogate, g_c, t, name, kc, sc)
+            fg, act, _gp = rendered_jaw_force(params, surrogate, name, float(t), cn * q)
             fg[-1] = 0.0  # n_contact: no contact
             rows.append(fg)
             f_t = sc * surrogate.force(g_c, t, name)
             area = params.jaw_length_mm * 0.5 * math.pi * (params.diameter_mm - t)
             w = (f_t >= params.force_warning_N) | (f_t / area >= params.pressure_warning_MPa)
-            a = (f_t > 0) & (sc * surrogate.stiffness(gp, t, name) > kc)
+            a = (f_t > 0) & act
             warn.append(int(cn[w].max()) if np.any(w) else n_lo - 1)
             active.append(int(cn[a].max()) if np.any(a) else n_lo - 1)
         fg_max = max(fg_max, max(float(r.max()) for r in rows))
@@ -330,6 +374,8 @@ def _material_tables(
             raise ValueError(f"tol {tol:g} needs {len(xs)} grid nodes for {raw.name} (max 255)")
         ext = np.concatenate([rows, np.zeros((rows.shape[0], xs[-1] + 1 - rows.shape[1]))], 1)
         y = [[int(round(r[x] / unit)) for x in xs] for r in ext]
+        if min(min(r) for r in y) < 0:
+            raise ValueError(f"negative rendered jaw force for {raw.name}: the tables are unsigned")
         materials.append(
             MaterialTable(
                 name=raw.name,
@@ -428,8 +474,9 @@ def build_tables(
     surrogate : Surrogate
         Must hold every material of :data:`grasprom.fe.materials.MATERIAL_NAMES`.
     params : ControllerParams
-        Controller parameters baked into the tables (chain, spring, coupling, pulley, limits,
-        filter, damping, encoder); thickness and material stay run-time parameters.
+        Controller parameters baked into the tables (chain, spring, rendering -- coupling or
+        stiffness-clipped field, ``params.rendering`` --, pulley, limits, filter, damping,
+        encoder); thickness and material stay run-time parameters.
     tol : float
         Grid tolerance: linear interpolation reproduces every tabulated jaw-force curve within
         ``tol`` times the jaw-force full scale (the largest rendered jaw force of the tables,
