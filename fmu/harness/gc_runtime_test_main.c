@@ -64,6 +64,7 @@ int main(void) {
         RT_PUT(rc);
         RT_PUT(clamped);
         gc_init(&state, &params, &GC_CHAIN);
+        gc_build_field(&state, &params, &GC_CHAIN, &GC_MATERIALS[params.material]);
         for (i = 0; i < len; ++i) {
             double theta = RT_Q_RAD * (double)(int16_t)GC_RD16((const uint16_t *)&rt_counts[start + i]);
             RT_MARK(1);

@@ -16,6 +16,9 @@
  *                  encoder counts) by grasprom.export.arduino ("grasp_fixed_config.h",
  *                  "grasp_fixed_tables.h", PROGMEM); integer arithmetic (bit-identical on the
  *                  host and the AVR), or float with GF_FLOAT (set by the generated config).
+ *   GC_FIELD_N     run-time step: storage of the clipped rendering's field table in gc_state_t,
+ *                  GC_FIELD_POINTS (default) or 0 (the default on the AVR: 2 KB of RAM), which
+ *                  leaves the clipped rendering out (gc_check_params refuses rendering = 1).
  *
  * Measured on the ATmega328P (simavr, 16 MHz; README and benchmarks/bench_arduino.py): the
  * float run-time build and the float tabulated build both exceed the 1,600-cycle (1 kHz) budget;
@@ -133,7 +136,35 @@ typedef struct {
     double friction_vthr;    /* finger speed that sets the friction direction, mm/s (> 0) */
     double prony_g[GC_PRONY_MAX];   /* Prony (QLV) coefficients on the rendered jaw force, 1 */
     double prony_tau[GC_PRONY_MAX]; /* their time constants, s (> 0) */
+    /* rendering scheme of the tissue (grasprom.control.params.RENDERINGS) */
+    int rendering;           /* GC_RENDER_COUPLING (0) or GC_RENDER_CLIPPED (1) */
+    double stiffness_limit;  /* K_lim of the clipped rendering, N m/rad at the pivot (> 0) */
 } gc_params_t;
+
+/* Rendering schemes (gc_params_t.rendering): the virtual coupling, or the stiffness-clipped
+ * field tabulated by gc_build_field() (grasprom.control.field). */
+#define GC_RENDER_COUPLING 0
+#define GC_RENDER_CLIPPED 1
+
+/* Nodes of the clipped field along the handle angle: grasprom.control.field.FIELD_POINTS
+ * (checked by tests/export/test_interface.py and, in the FMU, by grasp_fmu_config.h). */
+#define GC_FIELD_POINTS 1025
+/* Halvings of the bisection behind a series jaw compliance: field.COMPLIANCE_BISECTIONS. */
+#define GC_COMPLIANCE_BISECTIONS 60
+
+/* Storage of the field table in gc_state_t: GC_FIELD_POINTS nodes (about 9 KB), or 0 to leave
+ * the table (and the clipped rendering) out of the build; gc_check_params() then refuses
+ * rendering = 1.  Default: 0 on the AVR (the ATmega328P has 2 KB of RAM), else the table. */
+#ifndef GC_FIELD_N
+#if defined(__AVR__)
+#define GC_FIELD_N 0
+#else
+#define GC_FIELD_N GC_FIELD_POINTS
+#endif
+#endif
+#if GC_FIELD_N != 0 && GC_FIELD_N != GC_FIELD_POINTS
+#error "GC_FIELD_N must be 0 (no clipped rendering) or GC_FIELD_POINTS"
+#endif
 
 /* Controller state and constants derived from the parameters at gc_init(). */
 typedef struct {
@@ -158,6 +189,16 @@ typedef struct {
     double pa[GC_PRONY_MAX]; /* exp(-T / tau_i) */
     double hb;         /* half the backlash, rad */
     int prony_on;      /* any prony_g != 0 */
+    /* clipped rendering: the field table of gc_build_field() (material and thickness it was
+     * built for; f_mat = 0: not built) */
+    const gc_material_t *f_mat;
+    double f_t;
+    double f_th_lo, f_dth; /* first node and node spacing, rad */
+    double f_kg;           /* K_g, the bound on the slope of the handle force, N/rad at the grip */
+#if GC_FIELD_N > 0
+    double f_force[GC_FIELD_N];         /* rendered jaw force Fr_j at the nodes, N */
+    unsigned char f_clipped[GC_FIELD_N];/* 1: the stiffness limit acts at the node */
+#endif
 } gc_state_t;
 
 /* Outputs of a step; mirrored by the ctypes structure generated from
@@ -166,7 +207,7 @@ typedef struct {
     double torque;               /* N m, after saturation */
     double force_handle;         /* N, torque / pulley radius */
     double force_handle_spring;  /* N */
-    double force_jaw;            /* N, rendered: through the virtual coupling (+ Prony terms) */
+    double force_jaw;            /* N, rendered: coupling or clipped field (+ Prony terms) */
     double force_tissue;         /* N, surrogate at the kinematic gap */
     double gap;                  /* mm */
     double proxy_gap;            /* mm */
@@ -199,7 +240,17 @@ void gc_chain_state(const gc_chain_t *c, double theta_deg, double *gap, double *
 int gc_check_params(const gc_params_t *p, const gc_material_t *materials, int n_materials,
                     double *thickness_clamped, int *clamped, const char **message);
 
+/* Reset the state and derive the constants of the parameters (not the field table). */
 void gc_init(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c);
+
+/* The field table of the clipped rendering (p->rendering = GC_RENDER_CLIPPED) for the material
+ * m and p->thickness, tabulated as grasprom.control.field.build_field does, operation for
+ * operation; call after gc_init() (not real-time: GC_FIELD_POINTS surrogate evaluations, times
+ * 61 with a jaw compliance).  Nothing to do for the coupling or in a build without the table
+ * (GC_FIELD_N = 0).  The step builds it itself if it was not built for its material and
+ * thickness, so calling it is what keeps the first step real-time. */
+void gc_build_field(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
+                    const gc_material_t *m);
 
 void gc_step(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c, const gc_material_t *m,
              double theta, gc_output_t *out);

@@ -173,6 +173,7 @@ int gf_exit_initialization(gf_instance_t *inst, const char *fn) {
     }
     inst->p = p;
     gc_init(&inst->s, &inst->p, &GC_CHAIN);
+    gc_build_field(&inst->s, &inst->p, &GC_CHAIN, &GC_MATERIALS[inst->p.material]);
     inst->n = 0;
     inst->v[GF_VR_time] = inst->t_start;
     inst->state = GF_STEP;

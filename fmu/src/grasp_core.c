@@ -1,9 +1,10 @@
 /*
  * grasp_core.c: the controller step of grasprom in C (see grasp_core.h for the build options).
- * The run-time step mirrors grasprom/control/controller.py, grasprom/chain/kinematics.py and
- * the scalar path of grasprom/surrogate operation by operation, so that results agree to
- * rounding; the tabulated step (GC_TABULATED) evaluates the tables grasprom.export.arduino
- * computes with the same Python reference.
+ * The run-time step (and its clipped field, gc_build_field) mirrors
+ * grasprom/control/impedance.py, grasprom/control/field.py, grasprom/chain/kinematics.py and
+ * the scalar path of grasprom/surrogate operation by operation, so that the results are
+ * bit-identical (tests/export/test_ccore.py); the tabulated step (GC_TABULATED) evaluates the
+ * tables grasprom.export.arduino computes with the same Python reference.
  */
 #include "grasp_core.h"
 
@@ -195,6 +196,7 @@ int gc_check_params(const gc_params_t *p, const gc_material_t *materials, int n_
     GC_POS(p->pressure_warning, "pressure_warning");
     GC_POS(p->jaw_length, "jaw_length");
     GC_POS(p->diameter, "diameter");
+    GC_POS(p->stiffness_limit, "stiffness_limit");
 #undef GC_POS
     if (!(isfinite(p->spring_k) && p->spring_k >= 0.0)) { *message = "spring_k must be >= 0"; return -3; }
     if (!(isfinite(p->damping) && p->damping >= 0.0)) { *message = "damping must be >= 0"; return -3; }
@@ -217,6 +219,16 @@ int gc_check_params(const gc_params_t *p, const gc_material_t *materials, int n_
         }
     }
 #undef GC_NONNEG
+    if (p->rendering != GC_RENDER_COUPLING && p->rendering != GC_RENDER_CLIPPED) {
+        *message = "rendering must be 0 (coupling) or 1 (clipped)"; return -6;
+    }
+#if GC_FIELD_N == 0
+    if (p->rendering == GC_RENDER_CLIPPED) {
+        *message = "rendering 1 (clipped) needs the field table, which this build leaves out "
+                   "(GC_FIELD_N = 0, the default on the AVR): use rendering 0 (coupling)";
+        return -6;
+    }
+#endif
     if (!(isfinite(p->encoder_counts) && p->encoder_counts >= 0.0)) {
         *message = "encoder_counts must be >= 0"; return -3;
     }
@@ -256,6 +268,11 @@ void gc_init(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c) {
     s->hb = 0.5 * (p->backlash_deg * DEG_TO_RAD);
     s->prony_on = 0;
     for (i = 0; i < GC_PRONY_MAX; ++i) s->prony_on |= p->prony_g[i] != 0.0;
+    s->f_mat = 0;
+    s->f_t = NAN;
+    s->f_th_lo = c->theta_lo;
+    s->f_dth = 0.0;
+    s->f_kg = 0.0;
 }
 
 /* ---------------------------------------------------------------- the step */
@@ -268,6 +285,97 @@ static void tissue(gc_state_t *s, const gc_params_t *p, double gap, double *f, d
         *k = *k * p->tissue_scale;
     }
 }
+
+/* ---------------------------------------------------------------- the clipped field */
+#if GC_FIELD_N > 0
+/* tissue force (N, scaled) at a gap (mm): the field's `tissue` callable */
+static double field_tissue(gc_state_t *s, const gc_params_t *p, double gap) {
+    double f, k;
+    tissue(s, p, gap, &f, &k);
+    return f;
+}
+
+/* grasprom.control.field.compliant_force_N: F = tissue(gap + C F) by bisection */
+static double compliant_force(gc_state_t *s, const gc_params_t *p, double gap, double C) {
+    double f0 = field_tissue(s, p, gap), lo, hi, mid;
+    int i;
+    if (C == 0.0 || f0 <= 0.0) return f0;
+    lo = 0.0;
+    hi = f0;
+    for (i = 0; i < GC_COMPLIANCE_BISECTIONS; ++i) {
+        mid = 0.5 * (lo + hi);
+        if (mid - field_tissue(s, p, gap + C * mid) > 0.0) hi = mid;
+        else lo = mid;
+    }
+    return 0.5 * (lo + hi);
+}
+
+/* the static handle force of node j: Fi_s = F_t a + S, with a = g'/L3 and S the spring's */
+static void field_node(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c, int j,
+                       double *fis, double *a, double *sp) {
+    double th_deg, g, g1, u, du, ft;
+    th_deg = j < GC_FIELD_N - 1 ? (s->f_th_lo + (double)j * s->f_dth) * RAD_TO_DEG
+                                : c->theta_hi_deg;
+    gc_chain_state(c, th_deg, &g, &g1, &u, &du);
+    ft = compliant_force(s, p, g, p->jaw_compliance);
+    *a = g1 / c->L3;
+    *sp = 0.0;
+    if (p->render_spring) {
+        double fs = c->spring_preload + p->spring_k * u;
+        *sp = -fs * du / c->L3;
+    }
+    *fis = ft * *a + *sp;
+}
+#endif
+
+/* grasprom.control.field.build_field.  The slope-limited track runs from the open end, so one
+ * backward pass computes each node's static force and its track (same values as Python's
+ * separate passes: every node value is a function of the node alone). */
+void gc_build_field(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
+                    const gc_material_t *m) {
+#if GC_FIELD_N > 0
+    double sum_g = 0.0, lim, fis, a, sp, fir, next = 0.0;
+    int i, j;
+    if (p->rendering != GC_RENDER_CLIPPED) return;
+    if (s->b_mat != m || !(s->b_t == p->thickness)) blend_prepare(s, m, p->thickness);
+    /* prony_factor = 1.0 + sum(prony_g): Python's sum, left to right from 0 (the padded
+     * g = 0 terms add exactly 0) */
+    for (i = 0; i < GC_PRONY_MAX; ++i) sum_g += p->prony_g[i];
+    s->f_th_lo = c->theta_lo;
+    s->f_dth = (c->theta_hi - c->theta_lo) / (double)(GC_FIELD_N - 1);
+    s->f_kg = p->stiffness_limit / (c->L3 * 1e-3) / (1.0 + sum_g);
+    lim = s->f_kg * s->f_dth;
+    for (j = GC_FIELD_N - 1; j >= 0; --j) {
+        field_node(s, p, c, j, &fis, &a, &sp);
+        fir = fis;
+        if (j < GC_FIELD_N - 1) {
+            double lo = next - lim, hi = next + lim;
+            if (fir < lo) fir = lo;
+            else if (fir > hi) fir = hi;
+        }
+        next = fir;
+        s->f_force[j] = (fir - sp) / a;
+        s->f_clipped[j] = fir != fis;
+    }
+    s->f_mat = m;
+    s->f_t = p->thickness;
+#else
+    (void)s; (void)p; (void)c; (void)m;
+#endif
+}
+
+#if GC_FIELD_N > 0
+/* Field.jaw_force_N: linear interpolation at the chain angle th (rad); *active: the interval
+ * is clipped (either node) */
+static double field_force(const gc_state_t *s, double th, int *active) {
+    double u = (th - s->f_th_lo) / s->f_dth, fj = floor(u), w, f0;
+    int j = fj < 0.0 ? 0 : fj > (double)(GC_FIELD_N - 2) ? GC_FIELD_N - 2 : (int)fj;
+    w = u - (double)j;
+    f0 = s->f_force[j];
+    *active = s->f_clipped[j] || s->f_clipped[j + 1];
+    return f0 + w * (s->f_force[j + 1] - f0);
+}
+#endif
 
 /* the step; use_ext: damp the external velocity ext_v (rad/s) instead of the filtered estimate */
 static void step_impl(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
@@ -315,6 +423,14 @@ static void step_impl(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
     contact = f_g > 0.0;
     kc = p->coupling_k;
     if (p->jaw_compliance != 0.0) kc = 1.0 / (1.0 / kc + p->jaw_compliance);
+#if GC_FIELD_N > 0
+    if (p->rendering == GC_RENDER_CLIPPED) {
+        /* the stiffness-clipped field (built at initialisation; here only if it was not) */
+        if (s->f_mat != m || !(s->f_t == p->thickness)) gc_build_field(s, p, c, m);
+        fg = field_force(s, thc, &active);
+        gp = g;
+    } else
+#endif
     if (contact) {
         double f_p, k_p, r;
         int n_iter = isinf(s->gp) ? GC_COLD_START_ITERATIONS : GC_NEWTON_ITERATIONS;

@@ -54,6 +54,7 @@ __all__ = [
     "build_field",
     "compliant_force_N",
     "jaw_stiffness_limit_N_per_mm",
+    "prony_factor",
 ]
 
 FIELD_POINTS = 1025
@@ -133,6 +134,18 @@ def compliant_force_N(tissue: Callable[[float], float], gap_mm: float, complianc
         else:
             lo = mid
     return 0.5 * (lo + hi)
+
+
+def prony_factor(prony_g: tuple[float, ...]) -> float:
+    """Instantaneous stiffness factor ``1 + sum g_i`` of a Prony series (1).
+
+    Summed left to right from 0 with plain float additions, as the C core does (Python 3.12's
+    ``sum`` of floats is compensated and could differ by an ulp).
+    """
+    acc = 0.0
+    for g in prony_g:
+        acc += g
+    return 1.0 + acc
 
 
 def build_field(
@@ -219,6 +232,6 @@ def jaw_stiffness_limit_N_per_mm(params: ControllerParams, theta_deg: np.ndarray
         return np.full(th.shape, params.coupling_effective_N_per_mm)
     chain = params.chain_params
     L3 = chain.L3_mm
-    kg = params.stiffness_limit_Nm_per_rad / (L3 * 1e-3) / (1.0 + sum(params.prony_g))
+    kg = params.stiffness_limit_Nm_per_rad / (L3 * 1e-3) / prony_factor(params.prony_g)
     g1 = np.asarray(kin.dgap_dtheta_mm_per_rad(th, chain), dtype=float)
     return kg * L3 / (g1 * g1)

@@ -77,7 +77,7 @@ import math
 from typing import NamedTuple
 
 from grasprom.chain import kinematics as kin
-from grasprom.control.field import Field, build_field
+from grasprom.control.field import Field, build_field, prony_factor
 from grasprom.control.params import ControllerParams
 from grasprom.surrogate import Surrogate
 
@@ -216,7 +216,7 @@ class ImpedanceController:
             p.stiffness_limit_Nm_per_rad,
             render_spring=p.render_spring,
             compliance_mm_per_N=p.jaw_compliance_mm_per_N,
-            prony_factor=1.0 + sum(p.prony_g),
+            prony_factor=prony_factor(p.prony_g),
         )
 
     @property

@@ -7,7 +7,8 @@ the FMU and the Arduino export:
 * ``grasp_tables.h`` -- surrogate curves and chain constants as exact hexadecimal
   floating-point literals (:func:`tables_source`);
 * ``grasp_fmu_config.h`` -- value references, start/min/max, unit factors, the Prony term
-  count and the SI <-> core conversions of ``fmu_model.c`` (:func:`config_header`);
+  count, the field's node count and the SI <-> core conversions of ``fmu_model.c``
+  (:func:`config_header`);
 * :class:`GcParams` / :class:`GcOutput` -- ctypes mirrors of ``gc_params_t`` /
   ``gc_output_t`` made from :data:`~grasprom.export.variables.PARAMS_FIELDS` /
   :data:`~grasprom.export.variables.OUTPUT_FIELDS`;
@@ -31,6 +32,7 @@ from xml.sax.saxutils import quoteattr
 from grasprom import __version__
 from grasprom.chain import kinematics as kin
 from grasprom.control import ControllerParams
+from grasprom.control.field import FIELD_POINTS
 from grasprom.export.variables import (
     OUTPUT_FIELDS,
     PARAMS_FIELDS,
@@ -335,6 +337,7 @@ def config_header(vars_: list[Variable], token: str) -> str:
         f'#define GF_TOKEN "{token}"',
         f"#define GF_N_VARS {len(vars_)}",
         f"#define GF_PRONY_MAX {PRONY_MAX} /* Prony terms of the variables (GC_PRONY_MAX) */",
+        f"#define GF_FIELD_POINTS {FIELD_POINTS} /* clipped field nodes (GC_FIELD_POINTS) */",
     ]
     lines += [f"#define GF_VR_{v.name} {v.vr}" for v in vars_]
     lines.append("")
@@ -352,6 +355,11 @@ def config_header(vars_: list[Variable], token: str) -> str:
     lines.append(",\n".join(rows))
     lines += ["};", ""]
     lines += ["#if GF_PRONY_MAX != GC_PRONY_MAX", '#error "GF_PRONY_MAX != GC_PRONY_MAX"', "#endif"]
+    lines += [
+        "#if GF_FIELD_POINTS != GC_FIELD_POINTS",
+        '#error "GF_FIELD_POINTS != GC_FIELD_POINTS"',
+        "#endif",
+    ]
     lines += _unit_factor_macros(vars_)
     lines += _core_params_function(vars_)
     lines += _write_outputs_function(vars_)
@@ -607,6 +615,21 @@ is clamped (NaN &rarr; 0).</li>
 """The fixed part of the documentation: equations, rendering of the effects, status policy."""
 
 
+def _doc_clipped() -> str:
+    """The documentation's section on the clipped rendering (``rendering`` = 1)."""
+    return f"""<h2>Clipped rendering (<code>rendering</code> = 1)</h2>
+<p>Instead of the virtual coupling (step 4), the rendered jaw force is interpolated linearly at
+the linkage angle in a table of {FIELD_POINTS} nodes over the angle range, built
+at ExitInitializationMode: the static handle force of the tissue (behind the jaw compliance,
+and of the return spring when rendered), Fi<sub>s</sub> = F(g) dg/d&theta; / L<sub>3</sub> + S,
+tracked from the open end with a slope of at most K<sub>g</sub> = <code>stiffness_limit</code> /
+(L<sub>3</sub> (1 + &Sigma; g<sub>i</sub>)) per rad, the stiffest passive wall; the table holds the
+jaw force of the track, (Fi<sub>r</sub> &minus; S) L<sub>3</sub> / (dg/d&theta;).
+<code>coupling_active</code> reports where the limit acts; <code>force_tissue</code> stays
+F(g). The Prony terms, the chain, friction, damping and saturation follow as above.</p>
+"""
+
+
 def documentation_html(
     vars_: list[Variable], fmi_version: int, token: str, params: ControllerParams
 ) -> str:
@@ -631,6 +654,7 @@ step (sampled controller: no direct feedthrough, outputs respond to the input of
 communication point). Before the first step the outputs hold their start values.</p>
 
 {_DOC_EQUATIONS}
+{_doc_clipped()}
 <h2>Variables (SI units)</h2>
 <table><tr><th>name</th><th>vr</th><th>type</th><th>causality</th><th>variability</th>
 <th>unit</th><th>display</th><th>start</th><th>min</th><th>max</th><th>description</th></tr>

@@ -7,6 +7,7 @@ once and generated from here (:mod:`grasprom.export.codegen`):
   from SI to the C core's units (mm, N/mm, MPa, deg, ...), exact reciprocals of the factors to
   SI (tested);
 * :data:`PRONY_MAX` -- Prony terms of the C core, :data:`grasprom.control.MAX_PRONY_TERMS`;
+* :data:`RENDERING_CODES` -- the C codes of the rendering schemes (``gc_params_t.rendering``);
 * :data:`FLAG_NAMES` -- the output flags: ``int`` fields of ``gc_output_t``, bits of
   ``gf_output_t.flags`` (``GF_CONTACT`` = bit 0, ...), Boolean outputs of the FMU;
 * :data:`PARAMS_FIELDS` / :data:`OUTPUT_FIELDS` -- the C layout of ``gc_params_t`` /
@@ -25,6 +26,7 @@ from dataclasses import dataclass
 
 from grasprom.chain import kinematics as kin
 from grasprom.control import MAX_PRONY_TERMS, ControllerParams
+from grasprom.control.params import RENDERINGS
 from grasprom.fe import MATERIAL_NAMES
 from grasprom.surrogate import Surrogate
 
@@ -39,6 +41,7 @@ UNITS: dict[str, tuple[dict[str, int], list[tuple[str, float]]]] = {
     "N.m": ({"kg": 1, "m": 2, "s": -2}, []),
     "N/m": ({"kg": 1, "s": -2}, [("N/mm", 1e-3)]),
     "N.m.s/rad": ({"kg": 1, "m": 2, "s": -1, "rad": -1}, []),
+    "N.m/rad": ({"kg": 1, "m": 2, "s": -2, "rad": -1}, []),
     "Hz": ({"s": -1}, []),
     "Pa": ({"kg": 1, "m": -1, "s": -2}, [("kPa", 1e-3), ("MPa", 1e-6)]),
     "m/N": ({"kg": -1, "s": 2}, [("mm/N", 1e3)]),
@@ -72,6 +75,10 @@ PRONY_MAX = MAX_PRONY_TERMS
 """Prony terms of the C core (``GC_PRONY_MAX``); unused terms have g = 0 (they add exactly 0)."""
 PRONY_TAU_PAD = 1.0
 """Time constant (s) of the unused Prony terms (any positive value)."""
+
+RENDERING_CODES: dict[str, int] = {name: i for i, name in enumerate(RENDERINGS)}
+"""``gc_params_t.rendering`` of each :data:`grasprom.control.RENDERINGS` scheme: 0 coupling
+(``GC_RENDER_COUPLING``), 1 clipped (``GC_RENDER_CLIPPED``)."""
 
 FLAG_NAMES = ("contact", "tissue_warning", "coupling_active", "saturated", "theta_clamped")
 """Output flags in bit order (``GF_CONTACT`` = 0x01, ...; the ``int`` fields of ``gc_output_t``)."""
@@ -131,6 +138,8 @@ PARAMS_FIELDS: tuple[CField, ...] = (
     ),
     CField("prony_g", length=PRONY_MAX),
     CField("prony_tau", length=PRONY_MAX),
+    CField("rendering", "int"),
+    CField("stiffness_limit"),
 )
 """Layout of ``gc_params_t`` (``grasp_core.h``), in C order."""
 
@@ -247,6 +256,7 @@ def _output(name, type_, desc, core_field, column, unit=None, display=None, core
 
 
 _MATERIALS_DESC = ", ".join(f"{i} {m}" for i, m in enumerate(MATERIAL_NAMES))
+_RENDERINGS_DESC = ", ".join(f"{i} {m}" for m, i in RENDERING_CODES.items())
 
 _PARAMETERS: tuple[VarSpec, ...] = (
     _param("spring_k", "spring_k_N_per_mm", "spring_k", "N/m", "N/mm", "N/mm", 0.0, 1e6,
@@ -308,7 +318,8 @@ _PARAMETERS: tuple[VarSpec, ...] = (
 _FLAG_DESCRIPTIONS = {
     "contact": "the jaws touch the tissue (surrogate force > 0)",
     "tissue_warning": "tissue force or mean contact pressure reached its threshold",
-    "coupling_active": "tissue stiffer than the virtual coupling (rendering is bounded)",
+    "coupling_active": "tissue stiffer than the virtual coupling (rendering is bounded); "
+    "clipped rendering: the stiffness limit acts",
     "saturated": "the torque hit torque_limit",
     "theta_clamped": "theta was outside its range, infinite or NaN",
 }
@@ -355,6 +366,14 @@ SPECS: tuple[VarSpec, ...] = (
             "handle velocity used for the damping (filtered estimate or theta_dot)",
             "velocity", "velocity_rad_per_s", "rad/s", "deg/s"),
     *(_output(n, "Boolean", _FLAG_DESCRIPTIONS[n], n, n) for n in FLAG_NAMES),
+    # appended after the outputs: the value references above stay as they were
+    VarSpec("rendering", "Integer", "parameter", "fixed",
+            "tissue rendering scheme: " + _RENDERINGS_DESC + " (1: the stiffness-clipped "
+            "field of stiffness_limit, no virtual coupling)", params_field="rendering",
+            core_field="rendering", min=0, max=len(RENDERINGS) - 1),
+    _param("stiffness_limit", "stiffness_limit_Nm_per_rad", "stiffness_limit", "N.m/rad", None,
+           None, 1e-6, 1e6, "largest handle stiffness of the clipped rendering, at the handle "
+           "pivot (the field's slope bound K_lim; rendering 1 only)"),
 )  # fmt: skip
 """The FMU's variables in value-reference order (vr = position)."""
 
@@ -417,7 +436,7 @@ def core_value(params: ControllerParams, params_field: str) -> float | int:
     params_field : str
         Field name; ``prony_g[i]`` / ``prony_tau_s[i]`` are padded to :data:`PRONY_MAX` terms
         (g = 0 terms add exactly 0); ``material`` gives the index into
-        :data:`grasprom.fe.MATERIAL_NAMES`.
+        :data:`grasprom.fe.MATERIAL_NAMES`, ``rendering`` its :data:`RENDERING_CODES` code.
 
     Returns
     -------
@@ -429,6 +448,8 @@ def core_value(params: ControllerParams, params_field: str) -> float | int:
         return float((g if name == "prony_g" else tau)[int(idx)])
     if params_field == "material":
         return MATERIAL_NAMES.index(params.material)
+    if params_field == "rendering":
+        return RENDERING_CODES[params.rendering]
     return getattr(params, params_field)
 
 

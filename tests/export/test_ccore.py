@@ -1,4 +1,5 @@
-"""Parity of the C controller core (gcc, ctypes) with the Python reference, to 1e-9."""
+"""Parity of the C controller core (gcc, ctypes) with the Python reference: to 1e-9 for the
+coupling, bit-identical (``==``) for the clipped rendering and its field table."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import numpy as np
 import pytest
 
 from grasprom.control import ControllerParams, ImpedanceController, grasp_trajectory
+from grasprom.control.field import FIELD_POINTS
 from grasprom.export.ccore import CCore, c_params
 from grasprom.export.codegen import tables_source
 
@@ -145,3 +147,149 @@ def test_augmented_rendering_changes_the_c_output(surrogate, tmp_path):
         core = CCore(p, surrogate, tmp_path / str(len(out)))
         out.append(np.array([core.step(math.radians(a)).force_handle_N for a in th]))
     assert np.max(np.abs(out[1] - out[0])) > 1.0  # N
+
+
+# ------------------------------------------------------------------ clipped rendering (issue 13)
+AUGMENTED = {
+    "tissue_scale": 1.3,
+    "jaw_compliance_mm_per_N": 0.01,
+    "backlash_deg": 0.3,
+    "friction_coulomb_N": 2.0,
+    "friction_load_coefficient": 0.1,
+    "friction_viscous_N_s_per_mm": 0.02,
+    "prony_g": (0.3, 0.2),
+    "prony_tau_s": (0.2, 1.0),
+}
+
+CLIPPED_CASES = [
+    ("mr", 1.4, {}),  # on a grid node
+    ("mr", 0.95, {"stiffness_limit_Nm_per_rad": 2.0, "damping_Nms_per_rad": 0.02}),
+    ("le", 1.95, {"torque_limit_Nm": 0.3}),  # saturates
+    ("le", 0.8, {"encoder_counts_per_rev": 0, "render_spring": False}),
+    ("nh", 1.15, {"stiffness_limit_Nm_per_rad": 40.0, "velocity_cutoff_Hz": 5.0}),
+    ("mr", 1.4, AUGMENTED),  # every rendered effect of an augmented model at once
+    ("le", 1.2, {**AUGMENTED, "prony_g": (0.5, 0.1, 0.05, 0.02),
+                 "prony_tau_s": (0.01, 0.1, 1.0, 10.0), "stiffness_limit_Nm_per_rad": 3.0}),
+]  # fmt: skip
+
+
+def _clipped(case) -> ControllerParams:
+    material, t, extra = case
+    return ControllerParams(thickness_mm=t, material=material, rendering="clipped", **extra)
+
+
+@pytest.fixture(scope="module")
+def core(surrogate, tmp_path_factory):
+    """One host build of the C core (the chain is the same for every case: reset per case)."""
+    return CCore(ControllerParams(), surrogate, tmp_path_factory.mktemp("ccore"))
+
+
+def _assert_identical(a, b, what) -> float:
+    """Every output field bit-identical (``==``, floats and flags); returns max |a - b| (0)."""
+    worst = 0.0
+    for field, x, y in zip(a._fields, a, b):
+        assert x == y, (*what, field, x, y)
+        if not isinstance(y, bool):
+            worst = max(worst, abs(x - y))
+    return worst
+
+
+@pytest.mark.parametrize("case", CLIPPED_CASES, ids=[f"{m}-{t}" for m, t, _ in CLIPPED_CASES])
+def test_c_field_table_is_the_python_table_node_for_node(surrogate, core, case):
+    p = _clipped(case)
+    core.reset(p)
+    ref = ImpedanceController(p, surrogate).field
+    got = core.field()
+    assert got is not None and len(got.force_jaw_N) == FIELD_POINTS == len(ref.force_jaw_N)
+    assert got.theta_lo_rad == ref.theta_lo_rad and got.dtheta_rad == ref.dtheta_rad
+    assert got.stiffness_limit_N_per_rad == ref.stiffness_limit_N_per_rad
+    assert got.force_jaw_N == ref.force_jaw_N  # every node, bit for bit
+    assert got.clipped == ref.clipped
+    assert any(ref.clipped) and not all(ref.clipped)  # the limit acts somewhere, not everywhere
+
+
+@pytest.mark.parametrize("case", CLIPPED_CASES, ids=[f"{m}-{t}" for m, t, _ in CLIPPED_CASES])
+def test_c_core_clipped_is_bit_identical_to_python(surrogate, core, case):
+    p = _clipped(case)
+    worst = 0.0
+    active = 0
+    for name, traj in _trajectories().items():
+        core.reset(p)
+        ref = ImpedanceController(p, surrogate)
+        for k, th_deg in enumerate(traj):
+            a = core.step(math.radians(th_deg))
+            b = ref.step(math.radians(th_deg))
+            worst = max(worst, _assert_identical(a, b, (name, k)))
+            active += b.coupling_active
+    assert worst == 0.0 and active > 0
+    print(f"clipped {case[0]} {case[1]} mm: max |C - Python| = {worst}")
+
+
+def test_c_core_clipped_measured_velocity_is_bit_identical(surrogate, core):
+    """gc_step_ext with the clipped field (damping on a measured velocity)."""
+    p = dataclasses.replace(_clipped(CLIPPED_CASES[5]), damping_Nms_per_rad=0.01)
+    core.reset(p)
+    ref = ImpedanceController(p, surrogate)
+    th = _trajectories()["fast"]
+    w = np.gradient(np.radians(th), 1e-3)
+    w[::97] = np.nan
+    for k, (a_deg, v) in enumerate(zip(th, w)):
+        _assert_identical(core.step(math.radians(a_deg), v), ref.step(math.radians(a_deg), v), (k,))
+
+
+def test_clipped_changes_the_output_and_coupling_has_no_field(surrogate, core):
+    """Not trivial: the clipped field renders other forces than the coupling; with the coupling
+    the C core has no table and its outputs stay the coupling's (the parity tests above)."""
+    th = _trajectories()["slow"]
+    out = {}
+    for rendering in ("coupling", "clipped"):
+        p = ControllerParams(rendering=rendering)
+        core.reset(p)
+        out[rendering] = np.array([core.step(math.radians(a)).force_jaw_N for a in th])
+        assert (core.field() is None) == (rendering == "coupling")
+    assert np.max(np.abs(out["clipped"] - out["coupling"])) > 0.1  # N
+
+
+def test_c_core_checks_the_rendering_parameters(core):
+    p = ControllerParams()
+    for field, value, match in (
+        ("rendering", 2, "rendering must be 0 .coupling. or 1 .clipped."),
+        ("rendering", -1, "rendering must be"),
+        ("stiffness_limit", 0.0, "stiffness_limit must be finite and > 0"),
+        ("stiffness_limit", float("nan"), "stiffness_limit"),
+        ("stiffness_limit", float("inf"), "stiffness_limit"),
+    ):
+        raw = c_params(p)
+        setattr(raw, field, value)
+        with pytest.raises(ValueError, match=f"rejected.*{match}"):
+            core.init_raw(raw)
+    assert c_params(dataclasses.replace(p, rendering="clipped")).rendering == 1
+    assert c_params(p).rendering == 0
+    assert c_params(p).stiffness_limit == p.stiffness_limit_Nm_per_rad
+
+
+def test_build_without_the_field_table_refuses_clipped(surrogate, tmp_path):
+    """GC_FIELD_N = 0 (the AVR default: 2 KB of RAM) leaves the table out; the core then
+    refuses the clipped rendering with a clear message and still runs the coupling."""
+    p = ControllerParams()
+    small = CCore(p, surrogate, tmp_path, defines=("GC_FIELD_N=0",))
+    with pytest.raises(ValueError, match="clipped.*needs the field table"):
+        small.reset(dataclasses.replace(p, rendering="clipped"))
+    small.reset(p)
+    ref = ImpedanceController(p, surrogate)
+    for a in _trajectories()["fast"]:
+        _assert_identical(small.step(math.radians(a)), ref.step(math.radians(a)), (a,))
+
+
+def test_c_prony_factor_sums_left_to_right(core):
+    """K_g = K_lim / (L3 1e-3) / (1 + g_1 + ... + g_n), the sum from 0 left to right, as
+    Python's ``sum`` of floats up to 3.11 (3.12 compensates the rounding: 0.1 + 0.2 + 0.3 is
+    then 0.6, not 0.6000000000000001; the reference must keep the plain order for parity)."""
+    p = ControllerParams(rendering="clipped", prony_g=(0.1, 0.2, 0.3), prony_tau_s=(0.1, 1, 10))
+    core.reset(p)
+    acc = 0.0
+    for g in p.prony_g:
+        acc += g
+    assert acc == 0.6000000000000001
+    kg = p.stiffness_limit_Nm_per_rad / (p.chain.L3_mm * 1e-3) / (1.0 + acc)
+    assert core.field().stiffness_limit_N_per_rad == kg

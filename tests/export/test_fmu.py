@@ -214,18 +214,25 @@ def test_fmu_validates_and_has_the_contracted_layout(fmus, version):
     assert "theta" in html and "Equations" in html
 
 
-@pytest.mark.parametrize("case", CASES, ids=[f"{m}-{t}" for m, t, _ in CASES])
-def test_fmpy_matches_python_reference(fmus, surrogate, case, record_property):
-    params = _params(case)
+def _input_signal(params, theta_deg) -> np.ndarray:
+    """fmpy input: theta (rad) at every controller step."""
+    n = theta_deg.size
+    sig = np.zeros(n, dtype=[(c, np.float64) for c in ("time", "theta", "theta_dot")])
+    sig["time"] = params.sample_time_s * np.arange(n)
+    sig["theta"] = np.radians(theta_deg)
+    return sig
+
+
+def _fmpy_worst(fmus, surrogate, params, versions=(2, 3)) -> float:
+    """fmpy co-simulations of the parity trajectories (parameters as start values) against
+    the reference; the max relative error (asserted within REL)."""
     worst = 0.0
     for name, theta_deg in _trajectories().items():
         ref = _reference(params, surrogate, theta_deg)
         n = theta_deg.size
         T = params.sample_time_s
-        sig = np.zeros(n, dtype=[(c, np.float64) for c in ("time", "theta", "theta_dot")])
-        sig["time"] = T * np.arange(n)
-        sig["theta"] = np.radians(theta_deg)
-        for version in (2, 3):
+        sig = _input_signal(params, theta_deg)
+        for version in versions:
             fmu = fmus[version]
             res = simulate_fmu(
                 str(fmu.dir), model_description=fmu.md, start_time=0.0, stop_time=n * T,
@@ -237,8 +244,34 @@ def test_fmpy_matches_python_reference(fmus, surrogate, case, record_property):
             got = {k: res[k][1:] for k in REAL_OUT + BOOL_OUT}
             worst = max(worst, _max_rel_err(got, ref))
             assert res["torque"][0] == 0.0 and not res["contact"][0]
+    return worst
+
+
+@pytest.mark.parametrize("case", CASES, ids=[f"{m}-{t}" for m, t, _ in CASES])
+def test_fmpy_matches_python_reference(fmus, surrogate, case, record_property):
+    worst = _fmpy_worst(fmus, surrogate, _params(case))
     record_property("fmpy_max_rel_err", worst)
     print(f"fmpy max relative error {worst:.3g}")
+
+
+# the stiffness-clipped rendering (issue 13): the same FMUs with rendering = 1
+CLIPPED_CASES = [
+    ("mr", 1.4, {"rendering": "clipped"}),
+    ("le", 0.8, {"rendering": "clipped", "encoder_counts_per_rev": 0, "render_spring": False,
+                 "stiffness_limit_Nm_per_rad": 3.0}),
+    ("le", 1.95, {"rendering": "clipped", "torque_limit_Nm": 0.3, "damping_Nms_per_rad": 0.02}),
+    # every rendered effect of the augmented case, and a lower limit
+    ("nh", 1.15, {**CASES[5][2], "rendering": "clipped", "stiffness_limit_Nm_per_rad": 4.0}),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("case", CLIPPED_CASES, ids=[f"{m}-{t}" for m, t, _ in CLIPPED_CASES])
+def test_fmpy_clipped_matches_python_reference(fmus, surrogate, case, record_property):
+    params = _params(case)
+    assert ImpedanceController(params, surrogate).field is not None
+    worst = _fmpy_worst(fmus, surrogate, params)
+    record_property("fmpy_clipped_max_rel_err", worst)
+    print(f"fmpy (clipped) max relative error {worst:.3g}")
 
 
 @pytest.mark.parametrize("version", [2, 3])
@@ -257,6 +290,73 @@ def test_c_driver_runs_the_binary_without_python(fmus, driver, surrogate, versio
         got = _run_driver(driver, fmu, version, fmu.binary, params, th)
         worst = max(worst, _max_rel_err(got, _reference_steps(params, surrogate, th)))
     print(f"C driver (FMI {version}) max relative error {worst:.3g}")
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_c_driver_runs_the_clipped_rendering(fmus, driver, surrogate, version):
+    fmu = fmus[version]
+    worst = 0.0
+    for case in CLIPPED_CASES[1:]:
+        params = _params(case)
+        for th in (np.radians(_trajectories()["fast"]), np.radians(EDGE)):
+            got = _run_driver(driver, fmu, version, fmu.binary, params, th)
+            worst = max(worst, _max_rel_err(got, _reference_steps(params, surrogate, th)))
+    print(f"C driver (FMI {version}, clipped) max relative error {worst:.3g}")
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_export_with_clipped_rendering(surrogate, tmp_path, version):
+    """Parameters with rendering="clipped" export (FMI 2 and 3): the start values select the
+    clipped field, and the FMU run with its own start values matches the reference."""
+    _require(shutil.which("gcc") is not None, "gcc")
+    params = ControllerParams(material="le", thickness_mm=1.65, rendering="clipped",
+                              stiffness_limit_Nm_per_rad=4.0, prony_g=(0.2,),
+                              prony_tau_s=(0.5,), jaw_compliance_mm_per_N=0.005)  # fmt: skip
+    path = export_fmu(tmp_path / "clipped.fmu", params, surrogate, fmi_version=version)
+    assert validate_fmu(str(path)) == []
+    md = read_model_description(str(path))
+    v = {x.name: x for x in md.modelVariables}
+    assert int(v["rendering"].start) == 1 and float(v["stiffness_limit"].start) == 4.0
+    assert v["stiffness_limit"].unit == "N.m/rad" and v["rendering"].type in ("Integer", "Int32")
+    assert "0 coupling, 1 clipped" in v["rendering"].description
+    html = Path(extract(str(path), str(tmp_path / "x"))) / "documentation" / "index.html"
+    assert "Clipped rendering" in html.read_text()
+    theta_deg = _trajectories()["fast"]
+    n, T = theta_deg.size, params.sample_time_s
+    res = simulate_fmu(str(path), start_time=0.0, stop_time=n * T, output_interval=T,
+                       input=_input_signal(params, theta_deg),
+                       output=REAL_OUT + BOOL_OUT)  # fmt: skip
+    got = {k: res[k][1:] for k in REAL_OUT + BOOL_OUT}
+    err = _max_rel_err(got, _reference(params, surrogate, theta_deg))
+    assert np.any(got["coupling_active"])
+    print(f"clipped FMI {version} export max relative error {err:.3g}")
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_rendering_parameters_are_checked(slaves, surrogate, version):
+    s = slaves[version]
+    assert s.instantiate()
+    try:
+        assert s.set("rendering", 2) == 3 and "rejected" in s.last()
+        assert s.set("rendering", -1) == 3
+        assert s.set("stiffness_limit", math.nan) == 3 and "not finite" in s.last()
+        assert s.set("stiffness_limit", -1.0) == 1 and "clamped" in s.last()
+        assert s.set("rendering", 1) == 0
+        assert s.set("stiffness_limit", 6.2) == 0
+        assert s.enter() == 0 and s.exit() == 0
+        ref = ImpedanceController(ControllerParams(rendering="clipped"), surrogate)
+        t = 0.0
+        for theta in (0.3, 0.1, 0.0, 0.0):
+            assert s.set("theta", theta) == 0
+            assert s.step(t, 1e-3) == 0
+            t += 1e-3
+            b = ref.step(theta)
+            assert s.get("torque") == (0, pytest.approx(b.torque_Nm, rel=REL, abs=1e-12))
+            assert s.get("coupling_active") == (0, b.coupling_active)
+        assert b.coupling_active  # the closed end is clipped
+        assert s.terminate() == 0
+    finally:
+        s.free()
 
 
 @pytest.mark.parametrize("version", [2, 3])
@@ -538,6 +638,10 @@ def _fuzz_case(draw, fmu):
         p["material"] = draw(st.integers(-2, 4))
     if draw(st.booleans()):
         p["encoder_counts"] = draw(st.integers(-5, 2**31 - 1))
+    if draw(st.booleans()):
+        p["rendering"] = draw(st.integers(-1, 2))
+    if draw(st.booleans()):
+        p["stiffness_limit"] = draw(_reals(float(fmu.vars["stiffness_limit"].min), 100.0))
     p["use_theta_dot"] = draw(st.booleans())
     p["render_spring"] = draw(st.booleans())
     th = draw(st.lists(_reals(0.0, 0.384), min_size=1, max_size=8))

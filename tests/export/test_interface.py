@@ -11,6 +11,8 @@ import xml.etree.ElementTree as ET
 import pytest
 
 from grasprom.control import MAX_PRONY_TERMS, ControllerParams
+from grasprom.control.field import COMPLIANCE_BISECTIONS, FIELD_POINTS
+from grasprom.control.params import RENDERINGS
 from grasprom.export import OUTPUT_COLUMNS
 from grasprom.export.codegen import (
     GcOutput,
@@ -23,6 +25,7 @@ from grasprom.export.variables import (
     OUTPUT_FIELDS,
     PARAMS_FIELDS,
     PRONY_MAX,
+    RENDERING_CODES,
     SPECS,
     UNITS,
     variables,
@@ -39,6 +42,8 @@ def _layout_program(structs: dict[str, type]) -> str:
         for name, _ in struct._fields_:
             lines.append(f'    printf("{cname}.{name} %zu\\n", offsetof({cname}, {name}));')
     lines.append('    printf("GC_PRONY_MAX %d\\n", GC_PRONY_MAX);')
+    for name in ("GC_FIELD_POINTS", "GC_FIELD_N", "GC_RENDER_COUPLING", "GC_RENDER_CLIPPED"):
+        lines.append(f'    printf("{name} %d\\n", {name});')
     lines += ["    return 0;", "}"]
     return "\n".join(lines) + "\n"
 
@@ -60,6 +65,9 @@ def test_ctypes_structs_match_the_c_structs(tmp_path):
         for name, _ in struct._fields_:
             assert int(got[f"{cname}.{name}"]) == getattr(struct, name).offset, (cname, name)
     assert int(got["GC_PRONY_MAX"]) == MAX_PRONY_TERMS
+    assert int(got["GC_FIELD_POINTS"]) == FIELD_POINTS == int(got["GC_FIELD_N"])  # host: table
+    assert int(got["GC_RENDER_COUPLING"]) == RENDERING_CODES["coupling"] == 0
+    assert int(got["GC_RENDER_CLIPPED"]) == RENDERING_CODES["clipped"] == 1
 
 
 def test_prony_count_agrees_everywhere(surrogate):
@@ -125,3 +133,66 @@ def test_fmu_model_uses_the_generated_conversions():
     src = c_file("fmu_model.c").read_text()
     assert "gf_core_params(" in src and "gf_write_outputs(" in src
     assert not re.search(r"\* 1e-?[36]\b|180\.0 / 3\.14", src)
+
+
+# the value references of the FMU before the clipped rendering (issue 13): they stay as they are
+VARIABLES_BEFORE_RENDERING = (
+    "time theta theta_dot thickness material spring_k damping velocity_cutoff pulley_radius "
+    "torque_limit sample_time coupling_stiffness force_warning pressure_warning jaw_length "
+    "diameter tissue_scale jaw_compliance backlash friction_coulomb friction_load_coefficient "
+    "friction_viscous friction_velocity_threshold prony_g_1 prony_g_2 prony_g_3 prony_g_4 "
+    "prony_tau_1 prony_tau_2 prony_tau_3 prony_tau_4 encoder_counts render_spring "
+    "use_theta_dot torque force_handle force_jaw force_tissue gap velocity contact "
+    "tissue_warning coupling_active saturated theta_clamped"
+).split()
+
+
+def test_field_constants_agree_everywhere(surrogate):
+    """FIELD_POINTS and the bisection count of Python are the C header's; the FMU config checks
+    its node count against the core's; the rendering codes follow RENDERINGS."""
+    header = c_file("grasp_core.h").read_text()
+    assert int(re.search(r"#define GC_FIELD_POINTS (\d+)", header).group(1)) == FIELD_POINTS
+    bis = re.search(r"#define GC_COMPLIANCE_BISECTIONS (\d+)", header)
+    assert int(bis.group(1)) == COMPLIANCE_BISECTIONS
+    cfg = config_header(variables(ControllerParams(), surrogate), "{token}")
+    assert f"#define GF_FIELD_POINTS {FIELD_POINTS}" in cfg
+    assert "#if GF_FIELD_POINTS != GC_FIELD_POINTS" in cfg
+    assert list(RENDERING_CODES) == list(RENDERINGS) == ["coupling", "clipped"]
+    assert list(RENDERING_CODES.values()) == [0, 1]
+    # the field table is a compile-time option, off on the AVR (2 KB of RAM)
+    assert re.search(r"#if defined\(__AVR__\)\s*#define GC_FIELD_N 0", header)
+
+
+def test_rendering_parameters_are_appended_and_mapped(surrogate):
+    """rendering (Integer 0/1) and stiffness_limit (Real, N.m/rad) are FMU parameters after
+    every existing variable (whose value references are unchanged), generated into the XML,
+    the config header and the ctypes structure."""
+    for p in (ControllerParams(), ControllerParams(rendering="clipped",
+                                                   stiffness_limit_Nm_per_rad=3.5)):  # fmt: skip
+        vars_ = {v.name: v for v in variables(p, surrogate)}
+        names = list(vars_)
+        assert names[: len(VARIABLES_BEFORE_RENDERING)] == VARIABLES_BEFORE_RENDERING
+        assert names[len(VARIABLES_BEFORE_RENDERING) :] == ["rendering", "stiffness_limit"]
+        r, k = vars_["rendering"], vars_["stiffness_limit"]
+        assert (r.type, r.causality, r.variability) == ("Integer", "parameter", "fixed")
+        assert (r.min, r.max, r.start) == (0, 1, RENDERING_CODES[p.rendering])
+        assert "0 coupling, 1 clipped" in r.description
+        assert (k.type, k.causality, k.unit, k.display_unit) == ("Real", "parameter", "N.m/rad",
+                                                                 None)  # fmt: skip
+        assert k.start == p.stiffness_limit_Nm_per_rad and k.min <= k.start <= k.max
+        for version in (2, 3):
+            root = ET.fromstring(model_description(list(vars_.values()), version, "{t}", p, "d"))
+            tag = "ScalarVariable" if version == 2 else "*"
+            xml = {e.get("name"): e for e in root.iter(tag) if e.get("valueReference")}
+            assert int(xml["rendering"].get("valueReference")) == len(VARIABLES_BEFORE_RENDERING)
+            el = xml["rendering"].find("Integer") if version == 2 else xml["rendering"]
+            assert int(el.get("start")) == RENDERING_CODES[p.rendering]
+            el = xml["stiffness_limit"].find("Real") if version == 2 else xml["stiffness_limit"]
+            assert el.get("unit") == "N.m/rad" and float(el.get("start")) == k.start
+        assert 'Unit name="N.m/rad"' in model_description(list(vars_.values()), 2, "{t}", p, "d")
+        cfg = config_header(list(vars_.values()), "{token}")
+        assert "p->rendering = (int)v[GF_VR_rendering];" in cfg
+        assert "p->stiffness_limit = v[GF_VR_stiffness_limit];" in cfg
+    assert [f.name for f in PARAMS_FIELDS[-2:]] == ["rendering", "stiffness_limit"]
+    assert [f.ctype for f in PARAMS_FIELDS[-2:]] == ["int", "double"]
+    assert GcParams.rendering.size == ctypes.sizeof(ctypes.c_int)
