@@ -523,7 +523,8 @@ void gc_step_ext(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
  *  1. clamp the count into [GF_N_LO, GF_N_TOP] (flag GF_THETA_CLAMPED);
  *  2. velocity: w += (1 - a) (dn - w), dn the count difference, w in counts/sample Q16,
  *     (1 - a) = GF_VEL_B / 2^16 with a = exp(-2 pi fc T) (exact discretisation, as Python);
- *  3. jaw force through the virtual coupling: linear interpolation of the (thickness-blended)
+ *  3. static rendered jaw force of the export's rendering (virtual coupling or stiffness-clipped
+ *     field): linear interpolation of the (thickness-blended)
  *     node values y[] on the material's dyadic grid x[] (segment widths 2^k counts, so the
  *     interpolation is a shift, no division); 0 from GF_N_CONTACT on (no contact);
  *  4. handle force by virtual work: Fi = Fg * a(theta) + b(theta), a = g'(theta) / L3 (Q15) and
@@ -531,7 +532,8 @@ void gc_step_ext(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
  *  5. damping: Fi -= KD * w (GF_KD: mN per count/sample, Q GF_KD_SHIFT);
  *  6. saturation |Fi| <= GF_FI_LIMIT_MN (= torque limit / pulley radius), torque = Fi r;
  *  7. flags: contact (count < GF_N_CONTACT), tissue warning (count <= warn_count) and coupling
- *     active (count <= active_count), thresholds blended over the thickness at gf_init().
+ *     active (count <= active_count; with the clipped rendering: stiffness limit active),
+ *     thresholds blended over the thickness at gf_init().
  */
 #define GF_PROGMEM GC_TABLE
 #define GF_RD16(p) GC_RD16(p)
@@ -545,7 +547,7 @@ typedef struct {
     const uint16_t *t;      /* nt thicknesses, um, ascending */
     const uint16_t *y;      /* nt rows of nx jaw forces, units of 2^GF_FG_SHIFT mN */
     const int16_t *warn;    /* nt tissue-warning thresholds, counts */
-    const int16_t *active;  /* nt coupling-active thresholds, counts */
+    const int16_t *active;  /* nt coupling-active (clipped: limit-active) thresholds, counts */
     uint8_t nx;
     uint8_t nt;
 } gf_material_t;
