@@ -1,11 +1,13 @@
 """Passivity tuning of the impedance controller over the shipped FE sweep.
 
 Builds the surrogate from ``fe_data/default``, runs :func:`grasprom.control.tuning.tune` (Colgate /
-Abbott-Okamura bounds, Z-width, python-control poles and margins, simulation check), prints the
-report and writes ``controller.json``, ``tuning.json``, ``tuning.txt`` and the plots into
-``--out``.  Takes about 10 s.
+Abbott-Okamura bounds, Z-width, python-control poles and margins with the hand at every
+operating point, the transparency table, simulation check), prints the report and writes
+``controller.json``, ``tuning.json``, ``tuning.txt`` and the plots (``transparency.png``
+among them) into ``--out``.  Takes about 10 s.
 
     python examples/tune_controller.py --out /tmp/tune
+    python examples/tune_controller.py --out /tmp/tune --rendering clipped --device dev.json
 """
 
 from __future__ import annotations
@@ -15,7 +17,14 @@ import warnings
 from dataclasses import replace
 from pathlib import Path
 
-from grasprom.control import ControllerParams, DeviceParams, tune, write_outputs
+from grasprom.control import (
+    ControllerParams,
+    DeviceParams,
+    apply_device,
+    load_device,
+    tune,
+    write_outputs,
+)
 from grasprom.surrogate import Surrogate
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -31,13 +40,22 @@ def main(argv: list[str] | None = None) -> int:
         default=DeviceParams().damping_Nms_per_rad,
         help="physical damping b at the handle pivot, N m s/rad",
     )
+    ap.add_argument(
+        "--rendering", choices=("coupling", "clipped"), default="coupling", help="tissue rendering"
+    )
+    ap.add_argument("--device", type=Path, default=None, help="device JSON (replaces --damping)")
     args = ap.parse_args(argv)
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
         sur = Surrogate.build(ROOT / "fe_data" / "default")
-    base = replace(ControllerParams(), sample_time_s=1.0 / args.rate_hz)
-    result = tune(sur, base, DeviceParams(damping_Nms_per_rad=args.damping))
+    base = replace(ControllerParams(rendering=args.rendering), sample_time_s=1.0 / args.rate_hz)
+    if args.device is not None:
+        device = load_device(args.device)
+        base = apply_device(base, device)
+    else:
+        device = DeviceParams(damping_Nms_per_rad=args.damping)
+    result = tune(sur, base, device)
     files = write_outputs(result, args.out)
     print(result.report())
     print("wrote " + ", ".join(str(f) for f in files.values()))

@@ -479,8 +479,41 @@ def _add_tune_parser(sub) -> None:
     t.add_argument(
         "--safety", type=float, default=1.25, help="required b / b_required (default 1.25)"
     )
+    _add_rendering_option(t)
+    _add_device_option(t)
     t.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     t.add_argument("--out", default="tuning", metavar="DIR", help="output directory")
+
+
+def _add_rendering_option(p: argparse.ArgumentParser) -> None:
+    """``--rendering {coupling,clipped}`` (default: the controller's, else coupling)."""
+    p.add_argument(
+        "--rendering",
+        choices=("coupling", "clipped"),
+        default=None,
+        help="tissue rendering: coupling (virtual coupling k_c in series) or clipped (the "
+        "tissue's own force wherever it is softer than the passive bound K_lim, the stiffest "
+        "passive wall beyond); default: that of --controller, else coupling",
+    )
+
+
+def _add_device_option(p: argparse.ArgumentParser) -> None:
+    """``--device FILE``: the haptic device (JSON, :func:`grasprom.control.load_device`)."""
+    p.add_argument(
+        "--device",
+        default=None,
+        metavar="JSON",
+        help="haptic device: JSON with inertia_kg_m2, damping_Nms_per_rad, coulomb_Nm, "
+        "torque_constant_Nm_per_A, current_limit_A, delay_samples, encoder_counts_per_rev, "
+        "pulley_radius_mm (each optional; default: the documented assumptions of DeviceParams)",
+    )
+
+
+def _load_device_option(path: str | None):
+    """The :class:`DeviceParams` of ``--device`` (the defaults without it)."""
+    from grasprom.control import DeviceParams, load_device
+
+    return load_device(path) if path else DeviceParams()
 
 
 def _cmd_tune(args: argparse.Namespace) -> int:
@@ -488,7 +521,7 @@ def _cmd_tune(args: argparse.Namespace) -> int:
     import math
     import warnings
 
-    from grasprom.control import ControllerParams, load_params, tune, write_outputs
+    from grasprom.control import ControllerParams, apply_device, load_params, tune, write_outputs
     from grasprom.surrogate import SurrogateFileError
 
     try:
@@ -505,6 +538,11 @@ def _cmd_tune(args: argparse.Namespace) -> int:
         mats = [m.strip() for m in args.material.split(",") if m.strip()] if args.material else None
         base = load_params(args.controller) if args.controller else ControllerParams()
         base = dataclasses.replace(base, sample_time_s=1.0 / args.rate_hz)
+        if args.rendering:
+            base = dataclasses.replace(base, rendering=args.rendering)
+        device = _load_device_option(args.device)
+        if args.device:
+            base = apply_device(base, device)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)
             from grasprom.surrogate import load_surrogate
@@ -513,7 +551,7 @@ def _cmd_tune(args: argparse.Namespace) -> int:
         aug = None
         if args.augmented:
             base, aug = _augment_params("tune", args.augmented, base, sur)
-        result = tune(sur, base, thicknesses=thick, materials=mats, safety=args.safety)
+        result = tune(sur, base, device, thicknesses=thick, materials=mats, safety=args.safety)
         if aug:
             result.summary.setdefault("augmentation", {}).update(aug)
         files = write_outputs(result, args.out, plots=not args.no_plots)
@@ -562,6 +600,7 @@ def _add_export_parser(sub) -> None:
 
 
 def _add_augmented_export(p) -> None:
+    _add_device_option(p)
     p.add_argument(
         "--augmented",
         default=None,
@@ -573,10 +612,12 @@ def _add_augmented_export(p) -> None:
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
-    from grasprom.control import ControllerParams, load_params
+    from grasprom.control import ControllerParams, apply_device, load_params
 
     try:
         params = load_params(args.params) if args.params else ControllerParams()
+        if args.device:
+            params = apply_device(params, _load_device_option(args.device))
         from grasprom.surrogate import load_surrogate
 
         sur = load_surrogate(args.surrogate, args.fe)
@@ -649,6 +690,14 @@ def _add_build_parser(sub) -> None:
         help="augmented model of 'grasprom diagnose': tune, export and co-simulate the "
         "controller with its instrument effects rendered",
     )
+    _add_device_option(b)
+    b.add_argument(
+        "--rendering",
+        choices=("coupling", "clipped"),
+        default="coupling",
+        help="tissue rendering of the tuned controller (default coupling; clipped needs the "
+        "C core and Arduino build that render it)",
+    )
 
 
 def _cmd_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
@@ -662,6 +711,11 @@ def _cmd_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
                       f"{', '.join(MATERIAL_NAMES)}")  # fmt: skip
     if not (math.isfinite(args.thickness) and args.thickness > 0):
         return _error("build", f"--thickness must be > 0 mm, got {args.thickness}")
+    if args.device:
+        try:
+            _load_device_option(args.device)
+        except ValueError as exc:
+            return _error("build", exc)
     opts = BuildOptions(
         fe_dir=resolve_data_dir(args.fe),
         holdout_dir=args.holdout,
@@ -671,6 +725,8 @@ def _cmd_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
         fast=args.fast,
         command_line=["grasprom", *argv],
         augmented=args.augmented,
+        device=args.device,
+        rendering=args.rendering,
     )
     try:
         res = run_build(opts, progress=None if args.quiet else sys.stderr)

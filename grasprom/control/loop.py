@@ -18,7 +18,35 @@ from grasprom.control.device import DeviceParams, HandParams
 if TYPE_CHECKING:  # python-control is imported when used (about 0.5 s)
     import control as ct
 
-__all__ = ["closed_loop", "environment_tf"]
+__all__ = ["closed_loop", "damping_ratio", "environment_tf"]
+
+
+def damping_ratio(poles: np.ndarray, T: float) -> tuple[float, float | None]:
+    """Smallest damping ratio (1) of the oscillatory discrete poles and its frequency (Hz).
+
+    Each pole ``z`` maps to ``s = ln(z) / T``; ``zeta = -Re(s) / |s|``.  Poles at the origin
+    (the delay) and real poles are left out; ``(1.0, None)`` when no pole oscillates.
+
+    Parameters
+    ----------
+    poles : ndarray
+        Closed-loop poles in the z-plane.
+    T : float
+        Sample time, s.
+
+    Returns
+    -------
+    tuple of float and (float or None)
+        ``(zeta_min, natural frequency of that pole in Hz)``.
+    """
+    z = np.asarray(poles, dtype=complex)
+    z = z[(np.abs(z) > 1e-9) & (np.abs(z.imag) > 1e-12)]
+    if z.size == 0:
+        return 1.0, None
+    sp = np.log(z) / T
+    zeta = -sp.real / np.abs(sp)
+    i = int(np.argmin(zeta))
+    return float(zeta[i]), float(np.abs(sp[i]) / (2 * math.pi))
 
 
 def environment_tf(
@@ -53,7 +81,9 @@ def closed_loop(
     -------
     dict
         ``max_pole_mag`` (stable iff < 1), ``stable``, ``gain_margin`` (factor on the loop gain;
-        ``inf`` if none), ``phase_margin_deg``, ``gain_crossover_Hz``, ``phase_crossover_Hz``.
+        ``inf`` if none), ``phase_margin_deg``, ``gain_crossover_Hz``, ``phase_crossover_Hz``,
+        ``damping_ratio`` (smallest of the oscillatory poles, :func:`damping_ratio`) and
+        ``damping_ratio_frequency_Hz`` (its natural frequency).
     """
     import control as ct
 
@@ -72,6 +102,7 @@ def closed_loop(
     def _hz(w: float) -> float | None:
         return None if w is None or not np.isfinite(w) else float(w) / (2 * math.pi)
 
+    zeta, f_zeta = damping_ratio(poles, T)
     return {
         "max_pole_mag": pmax,
         "stable": bool(pmax < 1.0),
@@ -79,4 +110,6 @@ def closed_loop(
         "phase_margin_deg": float(pm) if pm is not None and np.isfinite(pm) else math.inf,
         "gain_crossover_Hz": _hz(wgc),
         "phase_crossover_Hz": _hz(wpc),
+        "damping_ratio": zeta,
+        "damping_ratio_frequency_Hz": f_zeta,
     }

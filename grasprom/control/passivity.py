@@ -30,11 +30,13 @@ operating points.  Closed-loop poles and margins with the hand: :mod:`grasprom.c
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
 __all__ = [
     "abbott_okamura_bound",
+    "best_filter",
     "colgate_required_damping",
     "max_passive_stiffness",
     "required_damping",
@@ -138,3 +140,51 @@ def zwidth_boundary(
     """Z-width: ``(B, K_max(B))`` over ``B`` in ``[0, B_max]`` (N m s/rad, N m/rad)."""
     Bs = np.linspace(0.0, B_max, n)
     return Bs, np.array([max_passive_stiffness(b, B, T, cutoff_Hz, delay) for B in Bs])
+
+
+def best_filter(
+    b: float,
+    T: float,
+    delay: int,
+    safety: float,
+    cutoffs: Sequence[float],
+    n_B: int = 61,
+    B_min: float = 0.0,
+) -> tuple[float, float, float]:
+    """``(B, f_c, K)`` maximising the passive stiffness for the damping ``b / safety``.
+
+    A grid search: every cutoff of ``cutoffs`` (Hz) x ``n_B`` virtual dampings in
+    ``[0, 2 b / safety]`` (N m s/rad, raised to ``B_min``); :func:`max_passive_stiffness` of
+    each.
+
+    Parameters
+    ----------
+    b : float
+        Device damping, N m s/rad.
+    T : float
+        Sample time, s.
+    delay : int
+        Computation delay, samples.
+    safety : float
+        Required ``b / b_required`` (>= 1).
+    cutoffs : sequence of float
+        Candidate velocity cutoffs, Hz.
+    n_B : int
+        Virtual dampings per cutoff.
+    B_min : float
+        Smallest virtual damping (the rendered viscous friction), N m s/rad.
+
+    Returns
+    -------
+    tuple of float
+        ``(B N m s/rad, f_c Hz, K N m/rad)``; ``K = -1`` when none is passive.
+    """
+    beff = b / safety
+    best = (0.0, float(cutoffs[0]), -1.0)
+    for fc in cutoffs:
+        for B in np.linspace(0.0, 2.0 * beff, n_B):
+            Bt = max(float(B), B_min)
+            k = max_passive_stiffness(beff, Bt, T, fc, delay)
+            if k > best[2] * (1 + 1e-9):
+                best = (Bt, float(fc), k)
+    return best

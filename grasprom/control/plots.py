@@ -19,11 +19,12 @@ from grasprom.control.tuning import TuningResult
 if TYPE_CHECKING:  # matplotlib is imported when plotting
     from matplotlib.figure import Figure
 
-__all__ = ["plot_tuning"]
+__all__ = ["plot_transparency", "plot_tuning"]
 
 
 def plot_tuning(result: TuningResult, out_dir: str | Path) -> dict[str, Path]:
-    """Write ``stiffness_vs_theta.png``, ``zwidth.png`` and ``bode_impedance.png``.
+    """Write ``stiffness_vs_theta.png``, ``zwidth.png``, ``bode_impedance.png`` and
+    ``transparency.png`` (the last when the result has force curves).
 
     Returns
     -------
@@ -31,11 +32,64 @@ def plot_tuning(result: TuningResult, out_dir: str | Path) -> dict[str, Path]:
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    return {
+    files = {
         "stiffness": _plot_stiffness(result, out / "stiffness_vs_theta.png"),
         "zwidth": _plot_zwidth(result, out / "zwidth.png"),
         "bode": _plot_bode(result, out / "bode_impedance.png"),
     }
+    if result.curves:
+        files["transparency"] = plot_transparency(result, out / "transparency.png")
+    return files
+
+
+def plot_transparency(result: TuningResult, path: str | Path) -> Path:
+    """Rendered vs tissue jaw force over the gap (N vs mm) and their ratio vs the tissue force.
+
+    Left: tissue (dotted) and rendered (solid) force of each case of ``result.curves`` over
+    the jaw gap, log force axis.  Right: rendered / tissue over the tissue force, with the
+    levels of the transparency table marked.
+
+    Parameters
+    ----------
+    result : TuningResult
+    path : str or Path
+        PNG to write.
+
+    Returns
+    -------
+    Path
+    """
+    path = Path(path)
+    fig = _figure((11.0, 4.4))
+    ax1 = fig.add_subplot(1, 2, 1)
+    ax2 = fig.add_subplot(1, 2, 2)
+    scheme = result.params.rendering
+    for n_, c in enumerate(result.curves):
+        col = f"C{n_}"
+        lab = f"{c['material']} {c['thickness_mm']:g} mm"
+        ft, fr = np.asarray(c["force_tissue_N"]), np.asarray(c["force_rendered_N"])
+        on = ft > 1e-3
+        ax1.semilogy(c["gap_mm"][on], ft[on], color=col, ls=":", lw=1.2)
+        ax1.semilogy(c["gap_mm"][on], np.maximum(fr[on], 1e-3), color=col, lw=1.5, label=lab)
+        ax2.semilogx(ft[on], fr[on] / ft[on], color=col, lw=1.5, label=lab)
+    levels = result.summary.get("transparency", {}).get("levels_N", [])
+    for L in levels:
+        ax2.axvline(L, color="0.7", lw=0.8)
+    ax1.set_xlabel("jaw gap (mm)")
+    ax1.set_ylabel("jaw force (N)")
+    ax1.set_ylim(1e-2, 200.0)
+    ax1.set_title(f"{scheme} rendering: rendered (solid), tissue (dotted)", fontsize=9)
+    ax2.set_xlabel("tissue jaw force (N)")
+    ax2.set_ylabel("rendered / tissue")
+    ax2.set_ylim(0.0, 1.1)
+    ax2.set_xlim(0.05, 200.0)
+    ax2.set_title("transparency (quasi-static)", fontsize=9)
+    for ax in (ax1, ax2):
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    return path
 
 
 def _figure(figsize: tuple[float, float]) -> Figure:

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["format_report", "jsonable"]
+__all__ = ["format_report", "jsonable", "margins_lines", "transparency_lines"]
 
 
 def jsonable(o: Any) -> Any:
@@ -31,11 +31,99 @@ def jsonable(o: Any) -> Any:
 def format_report(sm: dict[str, Any]) -> str:
     """Text report of a tuning summary (:meth:`~grasprom.control.tuning.TuningResult.to_dict`)."""
     lines = _choice_lines(sm)
+    lines += _rendering_lines(sm)
     lines += _closed_loop_lines(sm)
+    lines += margins_lines(sm)
     lines += _raw_tissue_lines(sm)
     lines += _augmentation_lines(sm)
+    lines += transparency_lines(sm)
     lines += _simulation_lines(sm)
     return "\n".join(lines)
+
+
+def _rendering_lines(sm: dict[str, Any]) -> list[str]:
+    """The rendering scheme and its stiffness bound."""
+    r = sm.get("rendering")
+    if not r:
+        return []
+    if r["scheme"] == "clipped":
+        return [
+            f"rendering: clipped (the tissue's own force wherever its handle stiffness is below "
+            f"K_lim, the stiffest passive wall beyond): K_lim = "
+            f"{r['stiffness_limit_Nm_per_rad']:g} N m/rad at the pivot "
+            f"({r['grip_stiffness_limit_N_per_rad']:.4g} N/rad at the grip after the Prony "
+            f"factor; instantaneous bound {r['stiffness_bound_Nm_per_rad']:.4g} N m/rad)"
+        ]
+    return [
+        f"rendering: coupling (virtual coupling k_c = {r['coupling_stiffness_N_per_mm']:g} N/mm "
+        "in series with the tissue)"
+    ]
+
+
+def margins_lines(sm: dict[str, Any]) -> list[str]:
+    """Damping ratio and phase margin with the hand at every operating point, against the
+    stated target; the device damping that would meet it."""
+    om = sm.get("operating_margins")
+    if not om:
+        return []
+    w = om["worst"]
+    lines = [
+        f"target: {om['target']['statement']}: " + ("MET" if om["meets_target"] else "NOT MET"),
+        f"  worst case {w['material']} t = {w['thickness_mm']:g} mm (K up to "
+        f"{w['K_max_Nm_per_rad']:.4g} N m/rad): damping ratio {w['damping_ratio_min']:.3g}, "
+        f"phase margin {w['phase_margin_min_deg']:.3g} deg with the hand; "
+        f"{sum(c['meets_target'] for c in om['cases'])}/{len(om['cases'])} cases meet it",
+    ]
+    g = om["grid"]
+    cells = [
+        f"K {k:.3g}: zeta {z:.3g}, PM {pm:.3g} deg"
+        for k, z, pm in zip(g["K_Nm_per_rad"], g["damping_ratio"], g["phase_margin_deg"])
+    ]
+    lines.append("  with the hand, by rendered stiffness (N m/rad): " + "; ".join(cells[-4:]))
+    kt = om["K_max_meeting_target_Nm_per_rad"]
+    lines.append(
+        f"  the target holds up to K = {kt:.3g} N m/rad"
+        if kt > 0
+        else "  no rendered stiffness of the grid meets the target with this device and hand"
+    )
+    lines.append(
+        f"  device damping b for the target at the largest K: "
+        f"{om['b_for_target_at_K_max_Nms_per_rad']:.3g} N m s/rad (B and cutoff unchanged)"
+    )
+    return lines
+
+
+def transparency_lines(sm: dict[str, Any]) -> list[str]:
+    """The transparency table: rendered/tissue force per case and level, wall vs bound, and
+    the damping / rate that would render the tissue exactly up to 20 N."""
+    tr = sm.get("transparency")
+    if not tr:
+        return []
+    levels = [f"{L:g}" for L in tr["levels_N"]]
+    head = " ".join(f"{L + ' N':>6s}" for L in levels)
+    lines = [
+        f"transparency ({tr['rendering']} rendering, quasi-static): rendered / tissue jaw force "
+        "at the gap where the tissue force reaches",
+        f"  {'case':10s} {head} {'max N':>7s} {'wall/bound':>10s} {'K20':>8s} "
+        f"{'b_needed':>9s} {'rate_needed':>11s}",
+    ]
+    for c in tr["cases"]:
+        cells = " ".join(
+            f"{c['ratios'][L]:6.3f}" if c["ratios"][L] is not None else f"{'-':>6s}" for L in levels
+        )
+        wb = c["wall_over_bound"]
+        lines.append(
+            f"  {c['material']} {c['thickness_mm']:<7g} {cells} {c['max_rendered_N']:7.3g} "
+            f"{(f'{wb:.3f}' if wb is not None else '-'):>10s} {c['K20_Nm_per_rad']:8.3g} "
+            f"{c['b_needed_Nms_per_rad']:9.3g} {c['rate_needed_Hz']:11.3g}"
+        )
+    lines.append(
+        f"  (wall/bound: median rendered handle stiffness where the tissue is stiffer than the "
+        f"passive bound, over the bound; K20: largest tissue handle stiffness below "
+        f"{tr['exact_up_to_N']:g} N, N m/rad; b_needed (N m s/rad) or rate_needed (Hz): what "
+        "renders it passively, i.e. the tissue exactly up to 20 N)"
+    )
+    return lines
 
 
 def _choice_lines(sm: dict[str, Any]) -> list[str]:
@@ -47,7 +135,7 @@ def _choice_lines(sm: dict[str, Any]) -> list[str]:
         f"device b = {dev['damping_Nms_per_rad']:g} N m s/rad, J = {dev['inertia_kg_m2']:g} "
         f"kg m^2, Coulomb {dev['coulomb_Nm']:g} N m, encoder quantum "
         f"{sm['encoder_quantum_rad']:.3g} rad",
-        f"chosen: k_c = {c['coupling_stiffness_N_per_mm']:g} N/mm, B = "
+        f"chosen: {_bound_text(c)}, B = "
         f"{c['damping_Nms_per_rad']:.4g} N m s/rad, velocity cutoff {c['velocity_cutoff_Hz']:g} "
         f"Hz, torque limit {c['torque_limit_Nm']:g} N m",
         f"passive stiffness (delay-aware Colgate-Schenkel, this B and cutoff): "
@@ -70,8 +158,15 @@ def _choice_lines(sm: dict[str, Any]) -> list[str]:
         f"Abbott-Okamura K <= max(2b/T, 2f_c/Delta) = "
         f"{sm['abbott_okamura']['max_K_Nm_per_rad']:.4g} N m/rad (viscous "
         f"{sm['abbott_okamura']['viscous_term_Nm_per_rad']:.4g}, Coulomb "
-        f"{sm['abbott_okamura']['coulomb_term_Nm_per_rad']:.4g}; not used for k_c)",
+        f"{sm['abbott_okamura']['coulomb_term_Nm_per_rad']:.4g}; not used for the bound)",
     ]
+
+
+def _bound_text(c: dict[str, Any]) -> str:
+    """``K_lim = ... N m/rad`` (clipped) or ``k_c = ... N/mm`` (coupling) of a chosen dict."""
+    if c.get("rendering") == "clipped":
+        return f"K_lim = {c['stiffness_limit_Nm_per_rad']:g} N m/rad (clipped rendering)"
+    return f"k_c = {c['coupling_stiffness_N_per_mm']:g} N/mm"
 
 
 def _closed_loop_lines(sm: dict[str, Any]) -> list[str]:
@@ -93,6 +188,7 @@ def _closed_loop_lines(sm: dict[str, Any]) -> list[str]:
 def _raw_tissue_lines(sm: dict[str, Any]) -> list[str]:
     """The raw tissue and the input coupling: what they would need, where not renderable."""
     raw = sm["raw_tissue"]
+    clipped = sm.get("rendering", {}).get("scheme") == "clipped"
     lines = []
     lines.append(
         f"raw tissue (no coupling): up to {raw['max_K_Nm_per_rad']:.4g} N m/rad; passive only "
@@ -114,8 +210,9 @@ def _raw_tissue_lines(sm: dict[str, Any]) -> list[str]:
         for m, ths in by_mat.items():
             lines.append(
                 f"  {m}: raw tissue not passively renderable below theta = "
-                f"{min(ths):.2f}-{max(ths):.2f} deg ({len(ths)} thicknesses); the coupling "
-                f"bounds it there"
+                f"{min(ths):.2f}-{max(ths):.2f} deg ({len(ths)} thicknesses); the "
+                + ("stiffness limit clips it" if clipped else "coupling bounds it")
+                + " there"
             )
     return lines
 
@@ -126,12 +223,22 @@ def _augmentation_lines(sm: dict[str, Any]) -> list[str]:
     lines: list[str] = []
     au = sm.get("augmentation")
     if au and "coupling_effective_N_per_mm" in au:
+        if sm.get("rendering", {}).get("scheme") == "clipped":
+            lines.append(
+                f"rendered instrument effects (clipped rendering): tissue scale "
+                f"{au['tissue_scale']:g}, jaw compliance {au['jaw_compliance_mm_per_N']:g} mm/N "
+                f"(inside the field: the tissue force behind it), Prony factor "
+                f"{au['prony_stiffness_factor']:.4g} (K_lim = bound x (1 + sum g) / factor)"
+            )
+        else:
+            lines.append(
+                f"rendered instrument effects: tissue scale {au['tissue_scale']:g}, jaw "
+                f"compliance {au['jaw_compliance_mm_per_N']:g} mm/N -> k_c,eff = "
+                f"{au['coupling_effective_N_per_mm']:.4g} N/mm; Prony factor "
+                f"{au['prony_stiffness_factor']:.4g} -> jaw stiffness bound "
+                f"{au['rendered_jaw_stiffness_bound_N_per_mm']:.4g} N/mm"
+            )
         lines += [
-            f"rendered instrument effects: tissue scale {au['tissue_scale']:g}, jaw compliance "
-            f"{au['jaw_compliance_mm_per_N']:g} mm/N -> k_c,eff = "
-            f"{au['coupling_effective_N_per_mm']:.4g} N/mm; Prony factor "
-            f"{au['prony_stiffness_factor']:.4g} -> jaw stiffness bound "
-            f"{au['rendered_jaw_stiffness_bound_N_per_mm']:.4g} N/mm",
             f"  viscous friction {au['friction_viscous_N_s_per_mm']:g} N s/mm = virtual damping "
             f"{au['friction_virtual_damping_Nms_per_rad']:.4g} N m s/rad, counted: total "
             f"{au['virtual_damping_total_Nms_per_rad']:.4g} N m s/rad (B "
@@ -150,20 +257,27 @@ def _augmentation_lines(sm: dict[str, Any]) -> list[str]:
 
 
 def _simulation_lines(sm: dict[str, Any]) -> list[str]:
-    """Verdicts of the simulation check (chosen and rejected parameters)."""
+    """Verdicts of the simulation check (chosen and rejected parameters), in words that match
+    the numbers: the amplitude trend, the end stop and the sign of the net energy."""
     lines = []
     for name, v in sm.get("simulation", {}).items():
+        if v.get("rendering") == "clipped":
+            what = f"K_lim = {v['stiffness_limit_Nm_per_rad']:g} N m/rad"
+        else:
+            what = f"k_c = {v['coupling_stiffness_N_per_mm']:g} N/mm"
+        trend = v.get("trend") or (
+            "GROWING (the oscillation reaches the end stop)"
+            if v.get("hit_stop")
+            else ("GROWING" if v["growing"] else "no growing oscillation")
+        )
+        energy = "ACTIVE" if v["net_generated_J"] > 1e-9 else "passive"
+        pert = v.get("perturbation_deg")
         lines.append(
-            f"simulation {name} (k_c = {v['coupling_stiffness_N_per_mm']:g} N/mm, "
-            f"{v['material']} t = {v['thickness_mm']:g} mm, hold {v['theta_hold_deg']:.2f} deg): "
-            f"net energy generated {v['net_generated_J']:.3g} J, amplitude "
-            f"{v['amp_first_rad']:.3g} -> {v['amp_last_rad']:.3g} rad, "
-            + (
-                "GROWING (the oscillation reaches the end stop)"
-                if v.get("hit_stop")
-                else ("GROWING" if v["growing"] else "no growing oscillation")
-            )
-            + "; max |pole| "
+            f"simulation {name} ({what}, {v['material']} t = {v['thickness_mm']:g} mm, hold "
+            f"{v['theta_hold_deg']:.2f} deg"
+            + (f", released {pert:g} deg above it" if pert is not None else "")
+            + f"): net energy generated {v['net_generated_J']:.3g} J ({energy}), amplitude "
+            f"{v['amp_first_rad']:.3g} -> {v['amp_last_rad']:.3g} rad, {trend}; max |pole| "
             f"{v['max_pole_mag_with_hand']:.5f}"
         )
     return lines

@@ -23,6 +23,7 @@ and :func:`virtual_damping_Nms_per_rad` (on ``B``); see :mod:`grasprom.control.t
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
@@ -31,12 +32,16 @@ from typing import NamedTuple
 import numpy as np
 
 from grasprom.chain import kinematics as kin
+from grasprom.control.field import Field, jaw_stiffness_limit_N_per_mm
+from grasprom.control.impedance import ImpedanceController
 from grasprom.control.params import ControllerParams
 from grasprom.surrogate import Surrogate
 
 __all__ = [
     "OperatingPoints",
     "StiffestPoint",
+    "clipped_field",
+    "clipped_stiffness_bound_Nm_per_rad",
     "operating_points",
     "prony_stiffness_factor",
     "rendered_stiffness",
@@ -44,6 +49,55 @@ __all__ = [
     "stiffest_point",
     "virtual_damping_Nms_per_rad",
 ]
+
+
+@functools.lru_cache(maxsize=128)
+def clipped_field(s: Surrogate, params: ControllerParams) -> Field:
+    """The field of the clipped rendering of ``params`` (as the controller builds it, cached).
+
+    Parameters
+    ----------
+    s : Surrogate
+    params : ControllerParams
+        With ``rendering = "clipped"`` (the field uses ``stiffness_limit_Nm_per_rad``).
+
+    Returns
+    -------
+    Field
+    """
+    field = ImpedanceController(replace(params, rendering="clipped"), s).field
+    assert field is not None
+    return field
+
+
+def clipped_stiffness_bound_Nm_per_rad(params: ControllerParams) -> float:
+    """Largest instantaneous handle stiffness of the clipped rendering, N m/rad at the pivot.
+
+    The field's slopes are bounded by ``K_lim / (1 + sum g_i)`` (relaxed); the rendered Prony
+    series multiplies the jaw part by at most :func:`prony_stiffness_factor`, so the bound is
+    ``K_lim P / (1 + sum g_i)`` (``K_lim`` without Prony terms).
+
+    Parameters
+    ----------
+    params : ControllerParams
+
+    Returns
+    -------
+    float
+    """
+    return (
+        params.stiffness_limit_Nm_per_rad
+        * prony_stiffness_factor(params)
+        / (1.0 + sum(params.prony_g))
+    )
+
+
+def _field_jaw_force_N(s: Surrogate, params: ControllerParams, th_deg: np.ndarray) -> np.ndarray:
+    """Rendered (relaxed) jaw force of the clipped field at chain angles ``th_deg`` (N)."""
+    f = clipped_field(s, params)
+    return np.array([f.jaw_force_N(math.radians(x))[0] for x in np.ravel(th_deg)]).reshape(
+        np.shape(th_deg)
+    )
 
 
 def prony_stiffness_factor(params: ControllerParams) -> float:
@@ -203,6 +257,9 @@ def rendered_stiffness(
     g = np.asarray(kin.gap_mm(th, chain), dtype=float)
     f_raw = sc * np.asarray(s.force(g, t, m), dtype=float)
     kt_raw = sc * np.asarray(s.stiffness(g, t, m), dtype=float)
+    K_raw = _handle_K(f_raw, pf * kt_raw, th, chain, params.render_spring)
+    if params.rendering == "clipped":
+        return _clipped_points(s, params, th, g, kt_raw, K_raw)
     gp = _proxy_gap(s, g, t, m, kc, scale=sc)
     kt_p = sc * np.asarray(s.stiffness(gp, t, m), dtype=float)
     contact = f_raw > 0
@@ -218,7 +275,39 @@ def rendered_stiffness(
         tissue_stiffness_N_per_mm=kt_raw,
         jaw_stiffness_N_per_mm=kjaw,
         K_Nm_per_rad=_handle_K(fg, kjaw, th, chain, params.render_spring),
-        K_raw_Nm_per_rad=_handle_K(f_raw, pf * kt_raw, th, chain, params.render_spring),
+        K_raw_Nm_per_rad=K_raw,
+    )
+
+
+def _clipped_points(
+    s: Surrogate,
+    params: ControllerParams,
+    th: np.ndarray,
+    g: np.ndarray,
+    kt_raw: np.ndarray,
+    K_raw: np.ndarray,
+) -> OperatingPoints:
+    """Operating points of the clipped rendering: the field's force, ``min(K_raw, bound)``.
+
+    ``th`` chain angles (deg), ``g`` gaps (mm), ``kt_raw`` tissue stiffness (N/mm), ``K_raw``
+    the tissue's handle stiffness (N m/rad).  The rendered stiffness is the tissue's where it
+    is below :func:`clipped_stiffness_bound_Nm_per_rad` and the bound beyond (the field's
+    slopes never exceed it); the jaw stiffness likewise against the bound mapped to the jaw.
+    """
+    pf = prony_stiffness_factor(params)
+    kbound = clipped_stiffness_bound_Nm_per_rad(params)
+    jaw_bound = jaw_stiffness_limit_N_per_mm(params, th) * pf
+    return OperatingPoints(
+        material=params.material,
+        thickness_mm=float(params.thickness_mm),
+        theta_deg=th,
+        gap_mm=g,
+        proxy_gap_mm=g.copy(),
+        force_jaw_N=_field_jaw_force_N(s, params, th),
+        tissue_stiffness_N_per_mm=kt_raw,
+        jaw_stiffness_N_per_mm=np.minimum(pf * kt_raw, jaw_bound),
+        K_Nm_per_rad=np.minimum(K_raw, kbound),
+        K_raw_Nm_per_rad=K_raw,
     )
 
 
@@ -226,6 +315,8 @@ def static_handle_torque_Nm(
     s: Surrogate, params: ControllerParams, theta_rad: np.ndarray
 ) -> np.ndarray:
     """Static device torque at the handle pivot ``Fi L3`` (N m, opening) with converged proxy.
+
+    With the clipped rendering the jaw force is the field's (:func:`clipped_field`).
 
     The ideal (continuous, undamped) field the controller approximates; no saturation.  With
     rendered instrument effects: tissue scale and jaw compliance included, the Prony series
@@ -236,9 +327,12 @@ def static_handle_torque_Nm(
         np.clip(np.asarray(theta_rad, dtype=float), *np.radians(kin.theta_range_deg(chain)))
     )
     g = np.asarray(kin.gap_mm(th, chain), dtype=float)
-    kc = params.coupling_effective_N_per_mm
-    gp = _proxy_gap(s, g, params.thickness_mm, params.material, kc, scale=params.tissue_scale)
-    fg = kc * (gp - g)
+    if params.rendering == "clipped":
+        fg = _field_jaw_force_N(s, params, th)
+    else:
+        kc = params.coupling_effective_N_per_mm
+        gp = _proxy_gap(s, g, params.thickness_mm, params.material, kc, scale=params.tissue_scale)
+        fg = kc * (gp - g)
     fi = np.asarray(kin.handle_force_N(fg, th, chain), dtype=float)
     if not params.render_spring:
         fi = fi - np.asarray(kin.spring_handle_force_N(th, chain), dtype=float)

@@ -81,12 +81,7 @@ def summarise(
         "hand": asdict(hand),
         "hand_at_pivot": dict(zip(("J_kg_m2", "b_Nms_per_rad", "k_Nm_per_rad"), hand.at_pivot(L3))),
         "encoder_quantum_rad": q,
-        "chosen": {
-            "coupling_stiffness_N_per_mm": params.coupling_stiffness_N_per_mm,
-            "damping_Nms_per_rad": params.damping_Nms_per_rad,
-            "velocity_cutoff_Hz": fc,
-            "torque_limit_Nm": params.torque_limit_Nm,
-        },
+        "chosen": _chosen(params),
         "passive_stiffness_Nm_per_rad": k_pass * safety,
         "passive_stiffness_with_margin_Nm_per_rad": k_pass,
         "max_rendered_K_Nm_per_rad": kmax,
@@ -102,6 +97,21 @@ def summarise(
         "closed_loop_with_hand": closed_loop(kmax, B, fc, T, device, hand, L3),
         "closed_loop_device_alone": closed_loop(kmax, B, fc, T, device, None, L3),
     }
+
+
+def _chosen(params: ControllerParams) -> dict[str, Any]:
+    """The chosen parameters: ``k_c`` (N/mm), ``B`` (N m s/rad), cutoff (Hz), torque limit
+    (N m), the rendering and, when clipped, ``K_lim`` (N m/rad)."""
+    out: dict[str, Any] = {
+        "coupling_stiffness_N_per_mm": params.coupling_stiffness_N_per_mm,
+        "damping_Nms_per_rad": params.damping_Nms_per_rad,
+        "velocity_cutoff_Hz": params.velocity_cutoff_Hz,
+        "torque_limit_Nm": params.torque_limit_Nm,
+        "rendering": params.rendering,
+    }
+    if params.rendering == "clipped":
+        out["stiffness_limit_Nm_per_rad"] = params.stiffness_limit_Nm_per_rad
+    return out
 
 
 def _encoder_quantum_rad(s: Surrogate, params: ControllerParams, op: OperatingPoints) -> float:

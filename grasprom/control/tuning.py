@@ -1,11 +1,20 @@
 r"""Tuning of the impedance controller for passivity (python-control): :func:`tune`.
 
 The tuner picks the virtual damping ``B`` and velocity cutoff that maximise the passive
-stiffness of the device (:mod:`~grasprom.control.passivity`), then the largest coupling
-stiffness ``k_c`` whose rendered stiffness (:mod:`~grasprom.control.stiffness`) stays below it
-over theta x thickness x material, and reports the choice (:mod:`~grasprom.control.summary`,
-closed-loop poles from :mod:`~grasprom.control.loop`, the time-domain check of
-:mod:`~grasprom.control.verification`).  The models of device and hand are in
+stiffness of the device (:mod:`~grasprom.control.passivity`), then, for the coupling
+rendering, the largest coupling stiffness ``k_c`` whose rendered stiffness
+(:mod:`~grasprom.control.stiffness`) stays below it over theta x thickness x material, or, for
+the clipped rendering (``rendering = "clipped"``), the stiffness limit ``K_lim`` itself
+(:func:`clipped_limit`: the passive stiffness with the safety factor, the Prony instantaneous
+factor taken off, 2 significant digits rounded down; every slope of the clipped field is
+bounded by it, so ``b > K T/2 + |B|`` in its delay-aware form holds at every angle).  The
+report tells the truth about the choice: closed-loop damping ratio and phase margin with the
+hand at every operating point against a stated target (:mod:`~grasprom.control.margins`), the
+transparency table per case with the damping / rate that would render the tissue exactly up
+to 20 N (:mod:`~grasprom.control.transparency`), and an energy check released 0.5 deg above
+the hold (:func:`~grasprom.control.verification.verify_by_simulation`).  It reports the choice
+(:mod:`~grasprom.control.summary`, closed-loop poles from :mod:`~grasprom.control.loop`, the
+time-domain check of :mod:`~grasprom.control.verification`).  The models of device and hand are in
 :mod:`~grasprom.control.device`; the report text in :mod:`~grasprom.control.report`, the plots in
 :mod:`~grasprom.control.plots` and the files in :mod:`~grasprom.control.outputs`.
 
@@ -43,20 +52,30 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from grasprom.control.device import DeviceParams, HandParams
+from grasprom.control.margins import ZETA_TARGET, damping_needed, operating_margins
 from grasprom.control.params import ControllerParams
-from grasprom.control.passivity import max_passive_stiffness, required_damping
+from grasprom.control.passivity import best_filter, required_damping
 from grasprom.control.report import format_report, jsonable
 from grasprom.control.stiffness import (
     OperatingPoints,
+    clipped_stiffness_bound_Nm_per_rad,
     operating_points,
+    prony_stiffness_factor,
     stiffest_point,
     virtual_damping_Nms_per_rad,
 )
 from grasprom.control.summary import augmentation_summary, renders_instrument_effects, summarise
+from grasprom.control.transparency import (
+    PLOT_CASES,
+    RATE_GRID_HZ,
+    force_curves,
+    passive_stiffness_at_rates,
+    transparency_table,
+)
 from grasprom.control.verification import verify_by_simulation
 from grasprom.surrogate import Surrogate
 
-__all__ = ["TuningResult", "tune"]
+__all__ = ["TuningResult", "clipped_limit", "tune"]
 
 
 @dataclass
@@ -68,6 +87,9 @@ class TuningResult:
     hand: HandParams
     points: list[OperatingPoints]
     summary: dict[str, Any] = field(default_factory=dict)
+    curves: list[dict[str, Any]] = field(default_factory=list)
+    """Quasi-static force curves of a few cases for the transparency figure: ``material``,
+    ``thickness_mm``, ``gap_mm``, ``force_tissue_N``, ``force_rendered_N`` (arrays)."""
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready tuning report."""
@@ -88,15 +110,7 @@ def _choose_filter(
     B_min: float = 0.0,
 ) -> tuple[float, float, float]:
     """(B, f_c, K_allowed) maximising the passive stiffness for ``b / safety``, ``B >= B_min``."""
-    beff = b / safety
-    best = (0.0, float(cutoffs[0]), -1.0)
-    for fc in cutoffs:
-        for B in np.linspace(0.0, 2.0 * beff, n_B):
-            Bt = max(float(B), B_min)
-            k = max_passive_stiffness(beff, Bt, T, fc, delay)
-            if k > best[2] * (1 + 1e-9):
-                best = (Bt, float(fc), k)
-    return best
+    return best_filter(b, T, delay, safety, cutoffs, n_B, B_min)
 
 
 def _round_down(x: float, digits: int = 2) -> float:
@@ -120,14 +134,18 @@ def tune(
     cutoffs_Hz: Sequence[float] = (5, 10, 20, 30, 50, 75, 100, 150, 200),
     n_theta: int = 221,
     verify: bool = True,
+    zeta_target: float = ZETA_TARGET,
 ) -> TuningResult:
-    """Choose ``B``, the velocity cutoff and the coupling stiffness ``k_c`` for passivity.
+    """Choose ``B``, the velocity cutoff and ``k_c`` (coupling) or ``K_lim`` (clipped).
 
     1. ``(B, f_c)`` maximise the passive stiffness ``K_pass`` of the device with damping
        ``b / safety`` (delay-aware Colgate-Schenkel condition).
-    2. ``k_c`` is the largest (2 significant digits, rounded down) for which the largest
-       rendered stiffness over theta x thickness x material stays ``<= K_pass``, i.e. the
-       passivity margin ``b / b_required >= safety`` at every operating point.
+    2. Coupling rendering (``base.rendering``): ``k_c`` is the largest (2 significant
+       digits, rounded down) for which the largest rendered stiffness over theta x thickness
+       x material stays ``<= K_pass``, i.e. the passivity margin ``b / b_required >= safety``
+       at every operating point.  Clipped rendering: ``K_lim`` = :func:`clipped_limit` of
+       ``K_pass`` (the Prony instantaneous factor taken off); the rendered stiffness is then
+       ``min(tissue, K_lim)`` at every operating point.
 
     Rendered instrument effects in ``base`` (tissue scale, jaw compliance, Prony series,
     friction; see the module docstring) are kept and accounted for: ``K`` uses the scaled tissue,
@@ -137,7 +155,9 @@ def tune(
     3. Report: raw tissue (no coupling) stiffness and where it is not renderable, with the
        sample rate / damping it would need; Abbott-Okamura and Colgate closed-form figures;
        closed-loop poles and margins (python-control) at the stiffest point, with and without
-       the hand.
+       the hand, and damping ratio / phase margin with the hand at every operating point
+       against ``zeta_target``; the transparency table per case
+       (:mod:`~grasprom.control.transparency`).
 
     Parameters
     ----------
@@ -160,6 +180,9 @@ def tune(
         Theta samples over the range.
     verify : bool
         Run :func:`verify_by_simulation` and store it in the summary.
+    zeta_target : float
+        Target closed-loop damping ratio with the hand (reported per operating point,
+        :mod:`~grasprom.control.margins`).
 
     Returns
     -------
@@ -180,21 +203,105 @@ def tune(
         base,
         damping_Nms_per_rad=ch.B - ch.B_visc if ch.B > ch.B_visc else 0.0,
         velocity_cutoff_Hz=ch.fc,
-    )
-    search = _CouplingSearch(s, base, thicknesses, materials, n_theta, device, safety, ch)
-    params = replace(
-        base,
-        coupling_stiffness_N_per_mm=search.largest_passive_coupling(),
         torque_limit_Nm=min(base.torque_limit_Nm, device.torque_limit_Nm),
     )
+    search = None
+    if base.rendering == "clipped":
+        params = replace(base, stiffness_limit_Nm_per_rad=clipped_limit(base, ch.k_pass))
+    else:
+        search = _CouplingSearch(s, base, thicknesses, materials, n_theta, device, safety, ch)
+        params = replace(base, coupling_stiffness_N_per_mm=search.largest_passive_coupling())
     pts = operating_points(s, params, thicknesses, materials, n_theta)
     summary = summarise(s, params, device, hand, pts, safety, ch.k_pass)
-    summary["input_coupling"] = search.input_coupling()
+    if search is not None:
+        summary["input_coupling"] = search.input_coupling()
     if renders_instrument_effects(params):
         summary["augmentation"] = augmentation_summary(params, ch.B_visc)
+    summary.update(_truth(s, params, device, hand, pts, ch, (safety, cutoffs, zeta_target)))
     if verify:
-        summary["simulation"] = verify_by_simulation(s, params, device, hand, summary)
-    return TuningResult(params=params, device=device, hand=hand, points=pts, summary=summary)
+        summary["simulation"] = verify_by_simulation(s, params, device, hand, summary, points=pts)
+    return TuningResult(params=params, device=device, hand=hand, points=pts, summary=summary,
+                        curves=_curves(s, params, pts))  # fmt: skip
+
+
+def _curves(s: Surrogate, params: ControllerParams, pts: list[OperatingPoints]) -> list[dict]:
+    """Force curves of the :data:`~grasprom.control.transparency.PLOT_CASES` present in
+    ``pts`` (else the thinnest and thickest case of the first material)."""
+    have = [(o.material, o.thickness_mm) for o in pts]
+    cases = [c for c in PLOT_CASES if any(c[0] == m and abs(c[1] - t) < 1e-9 for m, t in have)]
+    if not cases:
+        first = [c for c in have if c[0] == have[0][0]]
+        cases = sorted({first[0], first[-1]})
+    out = []
+    for m, t in cases:
+        g, ft, fr = force_curves(s, replace(params, material=m, thickness_mm=t))
+        out.append({"material": m, "thickness_mm": t, "gap_mm": g, "force_tissue_N": ft,
+                    "force_rendered_N": fr})  # fmt: skip
+    return out
+
+
+def clipped_limit(params: ControllerParams, k_pass: float) -> float:
+    """``K_lim`` (N m/rad) of the clipped rendering for the passive stiffness ``k_pass``.
+
+    The field bounds its slopes by ``K_lim / (1 + sum g_i)`` and the Prony series multiplies
+    the jaw part by up to :func:`~grasprom.control.stiffness.prony_stiffness_factor` ``P``, so
+    ``K_lim = k_pass (1 + sum g_i) / P``, rounded down to 2 significant digits (``k_pass``
+    without Prony terms).
+
+    Parameters
+    ----------
+    params : ControllerParams
+        Prony terms and sample time.
+    k_pass : float
+        Passive stiffness with the safety margin, N m/rad.
+
+    Returns
+    -------
+    float
+    """
+    return _round_down(k_pass * (1.0 + sum(params.prony_g)) / prony_stiffness_factor(params), 2)
+
+
+def _truth(
+    s: Surrogate,
+    params: ControllerParams,
+    device: DeviceParams,
+    hand: HandParams,
+    pts: list[OperatingPoints],
+    ch: _DampingChoice,
+    opts: tuple[float, list[float], float],
+) -> dict[str, Any]:
+    """The ``rendering``, ``operating_margins`` and ``transparency`` entries of the summary.
+
+    ``opts`` is ``(safety, candidate cutoffs Hz, target damping ratio)``.
+    """
+    safety, cutoffs, zeta_target = opts
+    T, L3 = params.sample_time_s, params.chain_params.L3_mm
+    B = virtual_damping_Nms_per_rad(params)
+    om = operating_margins(pts, B, ch.fc, T, device, hand, L3, zeta_target)
+    kmax = max(float(np.max(o.K_Nm_per_rad)) for o in pts)
+    om["b_for_target_at_K_max_Nms_per_rad"] = damping_needed(
+        kmax, B, ch.fc, T, device, hand, L3, zeta_target
+    )
+    rates = passive_stiffness_at_rates(device, safety, cutoffs, B_min=ch.B_visc)
+    rendering = {"scheme": params.rendering}
+    if params.rendering == "clipped":
+        rendering.update(
+            stiffness_limit_Nm_per_rad=params.stiffness_limit_Nm_per_rad,
+            stiffness_bound_Nm_per_rad=clipped_stiffness_bound_Nm_per_rad(params),
+            grip_stiffness_limit_N_per_rad=params.stiffness_limit_Nm_per_rad
+            / (L3 * 1e-3)
+            / (1.0 + sum(params.prony_g)),
+        )
+    else:
+        rendering["coupling_stiffness_N_per_mm"] = params.coupling_stiffness_N_per_mm
+    return {
+        "rendering": rendering,
+        "operating_margins": om,
+        "transparency": transparency_table(
+            s, params, pts, device, ch.k_pass, (RATE_GRID_HZ, rates)
+        ),
+    }
 
 
 class _DampingChoice(NamedTuple):

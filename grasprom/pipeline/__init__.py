@@ -11,7 +11,9 @@
    surrogate;
    writes ``controller.json`` (tuned :class:`ControllerParams` at ``--thickness`` /
    ``--material``, report under ``"tuning"``), ``tuning.txt`` and the tuning figures
-   (``stiffness_vs_theta.png``, ``zwidth.png``, ``bode_impedance.png``).
+   (``stiffness_vs_theta.png``, ``zwidth.png``, ``bode_impedance.png``,
+   ``transparency.png``).  ``--device`` gives the device model (JSON), ``--rendering`` the
+   tissue rendering (coupling or clipped).
 3. ``fmu`` -- :func:`grasprom.export.fmu.export_fmu`: ``GraspController.fmu`` (FMI 2.0) and
    ``GraspController_fmi3.fmu`` (FMI 3.0), native C co-simulation.
 4. ``arduino`` -- :func:`grasprom.export.arduino.export_arduino` into ``arduino/`` with the budget
@@ -54,7 +56,7 @@ from __future__ import annotations
 
 from grasprom.pipeline.build import run_build
 from grasprom.pipeline.buildinfo import provenance, sha256_path
-from grasprom.pipeline.cosim import cosimulate, hand_force_N, plot_cosim
+from grasprom.pipeline.cosim import cosimulate, grasp_settling, hand_force_N, plot_cosim
 from grasprom.pipeline.options import BuildOptions, StageError
 from grasprom.pipeline.report import error_rows, summary, write_report
 from grasprom.pipeline.result import BuildResult, CosimResult, results
@@ -70,6 +72,7 @@ __all__ = [
     "StageError",
     "cosimulate",
     "error_rows",
+    "grasp_settling",
     "hand_force_N",
     "plot_cosim",
     "provenance",

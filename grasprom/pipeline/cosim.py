@@ -148,6 +148,41 @@ def grasp_profile(fast: bool) -> tuple[float, float, float, float]:
     return (0.4, 0.6, 0.3, 0.5) if fast else (1.0, 2.0, 0.5, 1.0)
 
 
+OVERSHOOT_TARGET = 0.15
+"""Largest overshoot of the co-simulated grasp the report calls settled (issue 13), 1."""
+
+
+def grasp_settling(cs: CosimResult, fast: bool) -> dict[str, Any]:
+    """Overshoot of the rendered handle force of a co-simulated grasp over its settled hold.
+
+    ``settled`` is the mean handle force over the last quarter of the hold, ``peak`` the
+    largest from the start to the end of the hold; ``overshoot = peak / settled - 1``.  The
+    ringing amplitude is the standard deviation of the handle force over the last quarter.
+
+    Parameters
+    ----------
+    cs : CosimResult
+    fast : bool
+        The profile of :func:`grasp_profile` the run used.
+
+    Returns
+    -------
+    dict
+        ``peak_N``, ``settled_N``, ``overshoot`` (1), ``ringing_rms_N``, ``target``,
+        ``meets_target``.
+    """
+    ramp, hold, _release, _rest = grasp_profile(fast)
+    t, f = cs.col("time_s"), cs.col("force_handle_N")
+    end = ramp + hold
+    last = (t >= end - 0.25 * hold) & (t <= end)
+    settled = float(np.mean(f[last])) if np.any(last) else math.nan
+    peak = float(np.max(f[t <= end]))
+    over = peak / settled - 1.0 if settled > 0 else math.inf
+    return {"peak_N": peak, "settled_N": settled, "overshoot": over,
+            "ringing_rms_N": float(np.std(f[last])) if np.any(last) else math.nan,
+            "target": OVERSHOOT_TARGET, "meets_target": bool(over <= OVERSHOOT_TARGET)}  # fmt: skip
+
+
 def cosimulate(
     fmu_path: str | Path,
     params: ControllerParams,

@@ -51,6 +51,11 @@ class BuildOptions:
     augmented : str or Path, optional
         Augmented model of ``grasprom diagnose`` (``augmented_model.json``): its instrument
         effects are rendered by the tuned controller, the FMUs and the Arduino package.
+    device : str or Path, optional
+        Device file (:func:`grasprom.control.load_device`): the tuning, exports and
+        co-simulation use it (default the documented :class:`~grasprom.control.DeviceParams`).
+    rendering : str
+        Tissue rendering of the tuned controller, ``"coupling"`` (default) or ``"clipped"``.
     """
 
     fe_dir: str | Path = "fe_data/default"
@@ -61,3 +66,5 @@ class BuildOptions:
     fast: bool = False
     command_line: Sequence[str] | None = None
     augmented: str | Path | None = None
+    device: str | Path | None = None
+    rendering: str = "coupling"

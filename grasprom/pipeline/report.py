@@ -38,6 +38,11 @@ FIGURES = (
     ),
     ("zwidth", "Z-width: passive (K, B) set and the operating points"),
     ("bode", "Rendered impedance at the stiffest point vs the ideal K/s + B"),
+    (
+        "transparency",
+        "Transparency: rendered (solid) vs tissue (dotted) jaw force over the gap, and their "
+        "ratio over the tissue force (quasi-static)",
+    ),
     ("cosim", "Grasp-hold-release co-simulated through the FMU (fmpy)"),
 )
 """Figure key -> caption of the figures the report embeds, in report order."""
@@ -197,8 +202,68 @@ def _tuning_section(res: BuildResult) -> list[str]:
             f"(not rendered) {html.escape(', '.join(a['measurement_only']) or 'none')}.</p>"
         )
     parts.append(_table(["quantity", "value"], _tuning_rows(res.tuning)))
+    parts += _transparency_parts(res.tuning, res.figures)
     parts.append(f"<pre>{html.escape(res.tuning.report())}</pre>")
     parts += _figures(res.figures, ("zwidth", "stiffness", "bode"))
+    return parts
+
+
+def transparency_rows(sm: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
+    """Header and rows of the transparency table of a tuning summary (one row per case).
+
+    Parameters
+    ----------
+    sm : dict
+        Tuning summary (``tuning.json``) with a ``transparency`` entry.
+
+    Returns
+    -------
+    tuple
+        ``(header, rows)``: case, rendered / tissue force at each level, largest rendered
+        force (N), wall stiffness over the bound, ``K_20`` (N m/rad), ``b_needed``
+        (N m s/rad), ``rate_needed`` (Hz).
+    """
+    tr = sm.get("transparency")
+    if not tr:
+        return [], []
+    levels = [f"{L:g}" for L in tr["levels_N"]]
+    header = ["case", *(f"{L} N" for L in levels), "max rendered (N)", "wall / bound",
+              "K20 (N m/rad)", "b needed (N m s/rad)", "rate needed (Hz)"]  # fmt: skip
+    rows = [[f"{c['material']} {c['thickness_mm']:g} mm",
+             *(_fmt(c["ratios"][L], ".3f") for L in levels), _fmt(c["max_rendered_N"]),
+             _fmt(c["wall_over_bound"]), _fmt(c["K20_Nm_per_rad"]),
+             _fmt(c["b_needed_Nms_per_rad"]), _fmt(c["rate_needed_Hz"])]
+            for c in tr["cases"]]  # fmt: skip
+    return header, rows
+
+
+def _transparency_parts(tuning: TuningResult, figs: dict[str, Path]) -> list[str]:
+    """Transparency heading, table, figure and the closed-loop target of the tuning."""
+    sm = tuning.summary
+    header, rows = transparency_rows(sm)
+    if not rows:
+        return []
+    tr = sm["transparency"]
+    parts = [
+        "<h3>Transparency</h3>",
+        f"<p>{html.escape(tr['rendering'])} rendering, quasi-static: rendered / tissue jaw "
+        "force at the gap where the tissue force reaches each level; wall / bound: median "
+        "rendered handle stiffness where the tissue is stiffer than the passive bound, over "
+        "the bound; b / rate needed: what would render the tissue exactly (passively) up to "
+        f"{tr['exact_up_to_N']:g} N.</p>",
+        _table(header, rows),
+    ]
+    parts += _figures(figs, ("transparency",))
+    om = sm.get("operating_margins")
+    if om:
+        w = om["worst"]
+        parts.append(
+            f"<p>Target: {html.escape(om['target']['statement'])}: "
+            f"<b>{'met' if om['meets_target'] else 'NOT met'}</b>; worst case "
+            f"{html.escape(w['material'])} {w['thickness_mm']:g} mm: damping ratio "
+            f"{w['damping_ratio_min']:.3g}, phase margin {w['phase_margin_min_deg']:.3g} deg "
+            "with the hand.</p>"
+        )
     return parts
 
 
@@ -206,17 +271,25 @@ def _tuning_rows(tuning: TuningResult) -> list[list[str]]:
     """(quantity, value) rows of the chosen controller and its passivity figures."""
     sm = tuning.summary
     c = sm["chosen"]
+    bound = (
+        ["stiffness limit K_lim (N m/rad), clipped rendering",
+         _fmt(c["stiffness_limit_Nm_per_rad"])]
+        if c.get("rendering") == "clipped"
+        else ["coupling stiffness k_c (N/mm)", _fmt(c["coupling_stiffness_N_per_mm"])]
+    )  # fmt: skip
+    cl = sm["closed_loop_with_hand"]
     return [
-        ["coupling stiffness k_c (N/mm)", _fmt(c["coupling_stiffness_N_per_mm"])],
+        bound,
         ["virtual damping B (N m s/rad)", _fmt(c["damping_Nms_per_rad"], ".4g")],
         ["velocity cutoff (Hz)", _fmt(c["velocity_cutoff_Hz"])],
         ["largest rendered stiffness (N m/rad)", _fmt(sm["max_rendered_K_Nm_per_rad"])],
         ["passive stiffness bound (N m/rad)", _fmt(sm["passive_stiffness_Nm_per_rad"])],
         ["passivity margin b / b_required", _fmt(sm["passivity_margin"])],
         ["passive everywhere", str(sm["passive_everywhere"])],
+        ["closed loop with hand: max |pole|", _fmt(cl["max_pole_mag"], ".5f")],
         [
-            "closed loop with hand: max |pole|",
-            _fmt(sm["closed_loop_with_hand"]["max_pole_mag"], ".5f"),
+            "closed loop with hand at the stiffest point: damping ratio, phase margin (deg)",
+            f"{_fmt(cl.get('damping_ratio'))}, {_fmt(cl['phase_margin_deg'])}",
         ],
     ]
 
@@ -246,6 +319,14 @@ def _cosim_section(res: BuildResult) -> list[str]:
         f"{cs.col('torque_Nm').max():.3f} N m; FMU vs Python reference torque: "
         f"max |diff| {cs.max_torque_diff_Nm:.2e} N m; {cs.wall_s:.1f} s.</p>"
     )
+    st = cs.settling
+    if st:
+        parts.append(
+            f"<p>Rendered handle force: peak {st['peak_N']:.3g} N over the settled hold "
+            f"{st['settled_N']:.3g} N: overshoot {100 * st['overshoot']:.0f} % (target <= "
+            f"{100 * st['target']:.0f} %: <b>{'met' if st['meets_target'] else 'NOT met'}"
+            f"</b>), ringing {st['ringing_rms_N']:.2g} N rms at the end of the hold.</p>"
+        )
     parts += _figures(res.figures, ("cosim",))
     return parts
 
@@ -359,8 +440,17 @@ def summary(res: BuildResult) -> str:
     lines = [f"grasprom build: {res.total_s:.1f} s -> {res.out_dir}"]
     if res.tuning is not None:
         sm = res.tuning.summary
-        lines.append(f"  controller: k_c = {sm['chosen']['coupling_stiffness_N_per_mm']:g} N/mm, "
-                     f"passivity margin {sm['passivity_margin']:.3g}")  # fmt: skip
+        c = sm["chosen"]
+        bound = (f"K_lim = {c['stiffness_limit_Nm_per_rad']:g} N m/rad (clipped)"
+                 if c.get("rendering") == "clipped"
+                 else f"k_c = {c['coupling_stiffness_N_per_mm']:g} N/mm")  # fmt: skip
+        lines.append(f"  controller: {bound}, passivity margin {sm['passivity_margin']:.3g}")
+        om = sm.get("operating_margins")
+        if om:
+            lines.append(f"  closed loop with the hand: worst damping ratio "
+                         f"{om['worst']['damping_ratio_min']:.3g} (target "
+                         f"{om['target']['damping_ratio_min']:g}: "
+                         f"{'met' if om['meets_target'] else 'NOT met'})")  # fmt: skip
     if res.augmentation is not None:
         lines.append(f"  augmented model {res.augmentation['file']}: rendered "
                      f"{', '.join(res.augmentation['rendered']) or 'none'}")  # fmt: skip
@@ -373,6 +463,11 @@ def summary(res: BuildResult) -> str:
         lines.append(
             f"  co-simulation: max jaw force {res.cosim.col('force_jaw_N').max():.2f} N,"
             f" FMU vs Python torque {res.cosim.max_torque_diff_Nm:.1e} N m"
+            + (
+                f", handle-force overshoot {100 * res.cosim.settling['overshoot']:.0f} %"
+                if res.cosim.settling
+                else ""
+            )
         )
     for key in ("surrogate", "controller", "fmu2", "fmu3", "arduino", "report"):
         if key in res.files:

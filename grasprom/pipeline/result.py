@@ -31,12 +31,16 @@ class CosimResult:
         Largest |FMU torque - Python reference torque| over the run, N m.
     wall_s : float
         Wall time of the co-simulation, s.
+    settling : dict or None
+        Overshoot of the rendered handle force over the settled hold
+        (:func:`~grasprom.pipeline.cosim.grasp_settling`), set by the build.
     """
 
     data: np.ndarray
     columns: tuple[str, ...]
     max_torque_diff_Nm: float
     wall_s: float
+    settling: dict[str, Any] | None = None
 
     def col(self, name: str) -> np.ndarray:
         """Column ``name`` of :attr:`data`."""
@@ -123,12 +127,25 @@ def _surrogate_figures(s: Surrogate) -> dict[str, Any]:
 
 
 def _tuning_figures(tuning: TuningResult) -> dict[str, Any]:
-    """Chosen controller parameters and the passivity figures of a tuning."""
+    """Chosen controller parameters, the passivity figures of a tuning, the closed-loop
+    target with the hand and the transparency ratios per case."""
     sm = tuning.summary
-    return {**sm["chosen"], "passivity_margin": sm["passivity_margin"],
-            "passive_everywhere": sm["passive_everywhere"],
-            "max_rendered_K_Nm_per_rad": sm["max_rendered_K_Nm_per_rad"],
-            "passive_stiffness_Nm_per_rad": sm["passive_stiffness_Nm_per_rad"]}  # fmt: skip
+    out = {**sm["chosen"], "passivity_margin": sm["passivity_margin"],
+           "passive_everywhere": sm["passive_everywhere"],
+           "max_rendered_K_Nm_per_rad": sm["max_rendered_K_Nm_per_rad"],
+           "passive_stiffness_Nm_per_rad": sm["passive_stiffness_Nm_per_rad"]}  # fmt: skip
+    om = sm.get("operating_margins")
+    if om:
+        out["closed_loop_target"] = {"statement": om["target"]["statement"],
+                                     "met": om["meets_target"],
+                                     "worst_damping_ratio": om["worst"]["damping_ratio_min"],
+                                     "worst_phase_margin_deg":
+                                         om["worst"]["phase_margin_min_deg"]}  # fmt: skip
+    tr = sm.get("transparency")
+    if tr:
+        out["transparency"] = {f"{c['material']} {c['thickness_mm']:g}": c["ratios"]
+                               for c in tr["cases"]}  # fmt: skip
+    return out
 
 
 def _arduino_figures(a: ArduinoExport) -> dict[str, Any]:
@@ -144,4 +161,5 @@ def _cosim_figures(cs: CosimResult) -> dict[str, Any]:
     return {"steps": len(cs.data), "min_theta_deg": float(cs.col("theta_deg").min()),
             "max_force_jaw_N": float(cs.col("force_jaw_N").max()),
             "max_torque_Nm": float(cs.col("torque_Nm").max()),
-            "max_torque_diff_vs_python_Nm": cs.max_torque_diff_Nm}  # fmt: skip
+            "max_torque_diff_vs_python_Nm": cs.max_torque_diff_Nm,
+            "settling": cs.settling}  # fmt: skip

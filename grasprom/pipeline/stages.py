@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from grasprom.pipeline.buildinfo import sha256_path
-from grasprom.pipeline.cosim import cosimulate, plot_cosim
+from grasprom.pipeline.cosim import cosimulate, grasp_settling, plot_cosim
 from grasprom.pipeline.options import BuildOptions
 from grasprom.pipeline.report import write_report
 from grasprom.pipeline.result import BuildResult
@@ -62,11 +62,25 @@ def _stage_surrogate(opts: BuildOptions, res: BuildResult, out: Path, figs: Path
 
 
 def _stage_tune(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) -> None:
-    """Tune the controller (with the ``--augmented`` effects); ``controller.json``,
-    ``tuning.txt`` and the tuning figures."""
-    from grasprom.control import ControllerParams, plot_tuning, save_params, tune
+    """Tune the controller (with the ``--augmented`` effects, on the ``--device``, in the
+    ``--rendering``); ``controller.json``, ``tuning.txt`` and the tuning figures."""
+    from grasprom.control import (
+        ControllerParams,
+        DeviceParams,
+        apply_device,
+        load_device,
+        plot_tuning,
+        save_params,
+        tune,
+    )
 
-    base = ControllerParams(thickness_mm=opts.thickness_mm, material=opts.material)
+    device = load_device(opts.device) if opts.device is not None else DeviceParams()
+    base = ControllerParams(
+        thickness_mm=opts.thickness_mm, material=opts.material, rendering=opts.rendering
+    )
+    if opts.device is not None:
+        base = apply_device(base, device)
+        res.notes.append(f"device {opts.device} (sha256 {sha256_path(opts.device)[:12]})")
     if opts.augmented is not None:
         from grasprom.gap import controller_params_from_augmented, load_augmented
 
@@ -76,7 +90,7 @@ def _stage_tune(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) -> 
         res.augmentation = {"file": str(opts.augmented),
                             "sha256": sha256_path(opts.augmented), **info}  # fmt: skip
     kw: dict[str, Any] = {"n_theta": 61, "verify": False} if opts.fast else {}
-    result = tune(res.surrogate, base, **kw)
+    result = tune(res.surrogate, base, device, **kw)
     res.tuning = result
     res.params = result.params
     d = result.to_dict()
@@ -137,6 +151,7 @@ def _stage_cosim(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) ->
     dev = res.tuning.device if res.tuning is not None else DeviceParams()
     hand = res.tuning.hand if res.tuning is not None else HandParams()
     cs = cosimulate(res.files["fmu2"], res.params, res.surrogate, dev, hand, fast=opts.fast)
+    cs.settling = grasp_settling(cs, opts.fast)
     res.cosim = cs
     csv = out / "cosim.csv"
     np.savetxt(csv, cs.data, delimiter=",", comments="", header=",".join(cs.columns),

@@ -43,3 +43,23 @@ def test_empty_build_result():
     res = BuildResult(out_dir=Path("out"))
     assert results(res) == {}
     assert summary(res).startswith("grasprom build: 0.0 s -> out")
+
+
+def test_grasp_settling_measures_the_overshoot():
+    import numpy as np
+
+    from grasprom.pipeline import CosimResult, grasp_settling
+    from grasprom.pipeline.cosim import COLUMNS, grasp_profile
+
+    ramp, hold, release, rest = grasp_profile(True)
+    t = np.arange(1, int((ramp + hold + release + rest) / 1e-3) + 1) * 1e-3
+    settled = 3.0
+    f = np.where(t < ramp, settled * t / ramp, settled)
+    f = f + np.where(t >= ramp, 0.6 * np.exp(-(t - ramp) / 0.05) * np.cos(60 * (t - ramp)), 0.0)
+    data = np.zeros((t.size, len(COLUMNS)))
+    data[:, COLUMNS.index("time_s")] = t
+    data[:, COLUMNS.index("force_handle_N")] = f
+    st = grasp_settling(CosimResult(data, COLUMNS, 0.0, 0.0), True)
+    assert st["settled_N"] == pytest.approx(settled, rel=1e-3)
+    assert st["overshoot"] == pytest.approx(0.2, abs=0.01)
+    assert not st["meets_target"]

@@ -21,7 +21,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 CI = os.environ.get("CI") == "true"
 FIGURES = ("fe_sweep.png", "surrogate.png", "transmission.png", "stiffness_vs_theta.png",
-           "zwidth.png", "bode_impedance.png", "cosim.png")  # fmt: skip
+           "zwidth.png", "bode_impedance.png", "transparency.png", "cosim.png")  # fmt: skip
 
 
 def _env() -> dict[str, str]:
@@ -138,7 +138,8 @@ def test_report_names_and_embeds_figures(built):
     assert html.count("data:image/png;base64,") == len(FIGURES)
     for section in ("Held-out error", "passivity margin", "Z-width", "Co-simulated grasp",
                     "Arduino budget", "flash", "cycles", "Provenance", "command_line",
-                    "fe_hash", "git_revision"):  # fmt: skip
+                    "fe_hash", "git_revision", "Transparency", "damping ratio",
+                    "rate needed (Hz)"):  # fmt: skip
         assert section in html, section
     meta = json.loads((out / "build.json").read_text())
     prov = meta["provenance"]
@@ -212,6 +213,27 @@ def test_build_renders_an_augmented_model(tmp_path):
     # the FMU (with the rendering) matches the Python reference in the co-simulation
     assert meta["results"]["cosim"]["max_torque_diff_vs_python_Nm"] < 1e-9
     assert "Augmented model" in (out / "report.html").read_text()
+
+
+def test_build_tune_stage_uses_the_device_file(tmp_path):
+    """--device: the tune stage designs for the given device; a bad file is bad input."""
+    from grasprom.control import DeviceParams, load_params, save_device
+    from grasprom.pipeline import BuildOptions, run_build
+
+    dev = save_device(DeviceParams(damping_Nms_per_rad=0.02, current_limit_A=5.0,
+                                   encoder_counts_per_rev=8192), tmp_path / "dev.json")  # fmt: skip
+    out = tmp_path / "out"
+    opts = BuildOptions(out_dir=out, fast=True, device=dev, rendering="clipped")
+    res = run_build(opts, progress=None, stages=("surrogate", "tune"))
+    p = load_params(out / "controller.json")
+    assert p.rendering == "clipped" and p.stiffness_limit_Nm_per_rad == pytest.approx(12.0)
+    assert p.torque_limit_Nm == pytest.approx(0.5) and p.encoder_counts_per_rev == 8192
+    assert res.tuning.device.damping_Nms_per_rad == 0.02
+    assert "transparency" in res.figures
+    (tmp_path / "bad.json").write_text('{"inertia_kg_m2": 0}')
+    r = _build(tmp_path / "o2", "--device", str(tmp_path / "bad.json"))
+    assert r.returncode == 2 and "'inertia_kg_m2'" in r.stderr
+    assert not (tmp_path / "o2").exists()
 
 
 def test_bad_material_is_bad_input(tmp_path):
