@@ -354,7 +354,10 @@ void gc_build_field(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
             else if (fir > hi) fir = hi;
         }
         next = fir;
-        s->f_force[j] = (fir - sp) / a;
+        {
+            double fr = (fir - sp) / a; /* the jaws cannot pull: >= 0 */
+            s->f_force[j] = fr > 0.0 ? fr : 0.0;
+        }
         s->f_clipped[j] = fir != fis;
     }
     s->f_mat = m;

@@ -20,11 +20,14 @@ in the handle angle over the chain's range, ``theta_j = theta_lo + j dtheta``:
    rendered Prony series).  The track equals the tissue curve wherever it can follow it with a
    slope of at most ``K_g``; where the tissue is stiffer it climbs at ``K_g`` (the stiffest
    passive wall) and rejoins the tissue as soon as it can;
-3. the table stores the rendered *jaw* force ``Fr_j = (Fi_r,j - S_j) / a_j``; the step
+3. the table stores the rendered *jaw* force ``Fr_j = max((Fi_r,j - S_j) / a_j, 0)`` (the jaws
+   cannot pull: where the limit is below the return spring's own stiffness the track can fall
+   below the spring's force, and the field then renders the spring alone); the step
    interpolates it linearly at the chain angle and renders ``Fi = Fr a + S`` as the coupling
    scheme renders its coupled jaw force (Prony series, friction, spring and damping on top).
 
-Every slope of the piecewise-linear field is bounded by ``K_g``, so the sampled-data passivity
+Every slope of the piecewise-linear field is bounded by ``K_g`` (unless ``K_g`` is below the
+return spring's own handle stiffness, which no passive rendering of the spring can meet), so the sampled-data passivity
 condition of the tuner, ``b > K T/2 + |B|`` (Colgate & Schenkel 1997; for a nonlinear static
 environment with slopes in ``[-K, K]``: Miller, Colgate & Freeman 2000), holds with ``K =
 K_lim``.  Lengths mm, forces N, angles rad inside.
@@ -136,6 +139,11 @@ def compliant_force_N(tissue: Callable[[float], float], gap_mm: float, complianc
     return 0.5 * (lo + hi)
 
 
+def _non_negative(x: float) -> float:
+    """``x`` clipped at 0 (the jaws cannot pull; as the C core: -0.0 and NaN give 0.0)."""
+    return x if x > 0.0 else 0.0
+
+
 def prony_factor(prony_g: tuple[float, ...]) -> float:
     """Instantaneous stiffness factor ``1 + sum g_i`` of a Prony series (1).
 
@@ -204,7 +212,7 @@ def build_field(
         elif v > hi:
             v = hi
         fir[j] = v
-    fr = tuple((fir[j] - s[j]) / a[j] for j in range(n))
+    fr = tuple(_non_negative((fir[j] - s[j]) / a[j]) for j in range(n))
     clipped = tuple(fir[j] != fis[j] for j in range(n))
     return Field(th_lo, dth, fr, tuple(ft), clipped, kg)
 

@@ -77,6 +77,14 @@ def test_stiff_spring_is_a_line_of_the_limit_slope():
     assert np.allclose(fi[inside], expected, rtol=2e-3, atol=kg * f.dtheta_rad)
 
 
+def test_limit_below_the_spring_never_pulls_the_jaws():
+    """A limit below the return spring's own stiffness: the track falls below the spring's
+    force, and the rendered jaw force stays >= 0 (found by the FMU fuzz test)."""
+    f = build_field(_spring(50.0), CHAIN, 0.125)
+    assert min(f.force_jaw_N) == 0.0
+    assert max(f.force_jaw_N) > 0.0
+
+
 def test_prony_factor_divides_the_limit():
     f1 = build_field(_spring(50.0), CHAIN, 6.2)
     f2 = build_field(_spring(50.0), CHAIN, 6.2, prony_factor=2.0)
