@@ -27,10 +27,10 @@ in the handle angle over the chain's range, ``theta_j = theta_lo + j dtheta``:
    scheme renders its coupled jaw force (Prony series, friction, spring and damping on top).
 
 Every slope of the piecewise-linear field is bounded by ``K_g`` (unless ``K_g`` is below the
-return spring's own handle stiffness, which no passive rendering of the spring can meet), so the sampled-data passivity
-condition of the tuner, ``b > K T/2 + |B|`` (Colgate & Schenkel 1997; for a nonlinear static
-environment with slopes in ``[-K, K]``: Miller, Colgate & Freeman 2000), holds with ``K =
-K_lim``.  Lengths mm, forces N, angles rad inside.
+return spring's own handle stiffness, which no passive rendering of the spring can meet), so the
+sampled-data passivity condition of the tuner, ``b > K T/2 + |B|`` (Colgate & Schenkel 1997;
+for a nonlinear static environment with slopes in ``[-K, K]``: Miller, Colgate & Freeman 2000),
+holds with ``K = K_lim``.  Lengths mm, forces N, angles rad inside.
 
 The table is built with scalar Python floats in the order written above: the C core of the
 FMU builds the same table in ``gc_init`` operation for operation (tests compare them).
