@@ -373,7 +373,7 @@ def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
             progress=not args.quiet,
             runner=runner or default_runner,
         )
-    except (SweepInputError, CorruptCaseError) as exc:
+    except (SweepInputError, CorruptCaseError, OSError) as exc:
         return _error("sweep", exc)
     except KeyboardInterrupt:
         print(
@@ -407,11 +407,14 @@ def _cmd_surrogate(args: argparse.Namespace) -> int:
         BuildParams,
         Surrogate,
         SurrogateFileError,
+        check_passed,
+        format_check,
         format_errors,
         plot_surrogate,
     )
 
     cmd = f"surrogate {args.surrogate_command}"
+    code = 0
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -433,16 +436,20 @@ def _cmd_surrogate(args: argparse.Namespace) -> int:
                     f"surrogate {args.surrogate}: scheme {s.scheme}, "
                     f"{s.node_count()} nodes, built from {s.source}"
                 )
-                print(format_errors(s.check(args.fe), f"against FE cases in {args.fe}:"))
+                res = s.check(args.fe)
+                print(format_errors(res, f"against FE cases in {args.fe}:"))
+                print(format_check(res))
+                if not check_passed(res):
+                    code = 1
             else:
                 s = Surrogate.load(args.surrogate)
                 png = plot_surrogate(s, args.out, args.fe)
                 print(f"wrote {png}")
         for w in caught:
             print(f"grasprom {cmd}: warning: {w.message}", file=sys.stderr)
-    except (FileNotFoundError, CorruptCaseError, SurrogateFileError, ValueError) as exc:
+    except (FileNotFoundError, CorruptCaseError, SurrogateFileError, ValueError, OSError) as exc:
         return _error(cmd, exc)
-    return 0
+    return code
 
 
 def _add_tune_parser(sub) -> None:

@@ -234,6 +234,9 @@ def write_case(
     ------
     ValueError
         If the result lacks required columns or has an unknown status (nothing is written).
+    grasprom.fe.atomicio.AtomicWriteError
+        An :class:`OSError` naming the file if a write fails (e.g. disk full); nothing of the
+        case is left behind.
     """
     stem = spec_stem(spec)
     files = case_files(directory, stem)
@@ -245,9 +248,13 @@ def write_case(
         prov = provenance()
 
     csv_bytes = result.table.to_csv(index=False, lineterminator="\n").encode()
-    atomic_write_bytes(files.csv, csv_bytes)
     meta = _sidecar(spec, result, files, csv_bytes, wall_time_s, prov)
-    atomic_write_json(files.json, meta)
+    atomic_write_bytes(files.csv, csv_bytes)
+    try:
+        atomic_write_json(files.json, meta)
+    except BaseException:
+        files.csv.unlink(missing_ok=True)  # a CSV without its sidecar is no finished case
+        raise
     return files
 
 
@@ -311,6 +318,43 @@ def _finite_or_none(x: Any) -> float | None:
     return x if math.isfinite(x) else None
 
 
+def read_json_file(path: str | os.PathLike[str], what: str = "JSON") -> Any:
+    """Parse a UTF-8 JSON file, whatever the locale.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    what : str
+        What it is, for the message (e.g. ``"manifest JSON"``).
+
+    Returns
+    -------
+    object
+        The parsed JSON.
+
+    Raises
+    ------
+    CorruptCaseError
+        Naming the file if it cannot be read, is not UTF-8 (with the byte offset) or does
+        not parse.
+    """
+    try:
+        data = Path(path).read_bytes()
+    except OSError as exc:
+        raise CorruptCaseError(path, f"cannot read {what} ({exc.strerror or exc})") from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise CorruptCaseError(
+            path, f"{what} is not valid UTF-8 (byte 0x{data[exc.start]:02x} at offset {exc.start})"
+        ) from None
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise CorruptCaseError(path, f"{what} does not parse ({exc})") from None
+
+
 _REQUIRED_META = (
     "schema_version",
     "material",
@@ -345,10 +389,7 @@ def read_case(path: str | os.PathLike[str]) -> LoadedCase:
     files = case_files(p.parent, p.name)
     if not files.json.is_file():
         raise CorruptCaseError(files.json, "sidecar JSON not found")
-    try:
-        meta = json.loads(files.json.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise CorruptCaseError(files.json, f"JSON does not parse ({exc})") from None
+    meta = read_json_file(files.json, "JSON")
     if not isinstance(meta, dict):
         raise CorruptCaseError(files.json, "JSON is not an object")
     missing = [k for k in _REQUIRED_META if k not in meta]
@@ -374,6 +415,13 @@ def read_case(path: str | os.PathLike[str]) -> LoadedCase:
             f"sha256 {digest[:12]}... does not match csv_sha256 "
             f"{str(meta['csv_sha256'])[:12]}... recorded in {files.json.name}",
         )
+    try:
+        data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise CorruptCaseError(
+            files.csv,
+            f"CSV is not valid UTF-8 (byte 0x{data[exc.start]:02x} at offset {exc.start})",
+        ) from None
     try:
         import io
 
@@ -457,6 +505,67 @@ def sweep_parameters(spec: CaseSpec) -> dict[str, Any]:
     return d
 
 
+def case_parameters(meta: Mapping[str, Any]) -> dict[str, Any] | None:
+    """The sweep parameters a case sidecar records (its ``spec`` minus the grid axes).
+
+    Returns
+    -------
+    dict or None
+        Comparable with a manifest's ``parameters`` (see :func:`sweep_parameters`); None if
+        the sidecar has no ``spec``.
+    """
+    spec = meta.get("spec")
+    if not isinstance(spec, Mapping):
+        return None
+    return {k: v for k, v in spec.items() if k not in ("material", "thickness_mm")}
+
+
+def parameter_differences(
+    expected: Mapping[str, Any], actual: Mapping[str, Any], prefix: str = ""
+) -> list[tuple[str, Any, Any]]:
+    """The keys where two parameter dicts differ, nested dicts compared key by key.
+
+    Parameters
+    ----------
+    expected, actual : mapping
+        E.g. a manifest's ``parameters`` and :func:`case_parameters` of a sidecar.
+    prefix : str
+        Prepended to the keys (dotted path of nested keys).
+
+    Returns
+    -------
+    list of (str, object, object)
+        ``(dotted key, expected value, actual value)``, sorted; a missing key has the value
+        ``"<missing>"``. Values are compared by their canonical JSON (1 == 1.0).
+    """
+    out: list[tuple[str, Any, Any]] = []
+    for k in sorted(set(expected) | set(actual), key=str):
+        a, b = expected.get(k, "<missing>"), actual.get(k, "<missing>")
+        if isinstance(a, Mapping) and isinstance(b, Mapping):
+            out.extend(parameter_differences(a, b, f"{prefix}{k}."))
+        elif canonical_json(a) != canonical_json(b) and not _same_number(a, b):
+            out.append((f"{prefix}{k}", a, b))
+    return out
+
+
+def _same_number(a: Any, b: Any) -> bool:
+    """True for two equal numbers (ints and floats alike, not booleans)."""
+    nums = (int, float)
+    return (
+        isinstance(a, nums)
+        and isinstance(b, nums)
+        and not isinstance(a, bool)
+        and not isinstance(b, bool)
+        and float(a) == float(b)
+    )
+
+
+def format_differences(diffs: Sequence[tuple[str, Any, Any]], limit: int = 3) -> str:
+    """``"key: expected != actual"`` for the first ``limit`` differences, comma-separated."""
+    text = ", ".join(f"{k}: {a!r} != {b!r}" for k, a, b in diffs[:limit])
+    return text + (f" (and {len(diffs) - limit} more)" if len(diffs) > limit else "")
+
+
 def read_manifest(directory: str | os.PathLike[str]) -> dict | None:
     """Read ``sweep.json`` of a sweep directory.
 
@@ -473,10 +582,7 @@ def read_manifest(directory: str | os.PathLike[str]) -> dict | None:
     path = Path(directory) / MANIFEST_NAME
     if not path.is_file():
         return None
-    try:
-        m = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise CorruptCaseError(path, f"manifest JSON does not parse ({exc})") from None
+    m = read_json_file(path, "manifest JSON")
     if not isinstance(m, dict) or "cases" not in m or "parameters" not in m:
         raise CorruptCaseError(path, "manifest lacks 'cases' or 'parameters'")
     return m
@@ -519,17 +625,8 @@ def write_manifest(
     if not specs:
         raise ValueError("write_manifest: no cases")
     params = sweep_parameters(specs[0])
-    for s in specs[1:]:
-        if sweep_parameters(s) != params:
-            raise ValueError(
-                "all cases of one sweep must share diameter, jaw length, gap, "
-                "force cap, mesh and solver settings"
-            )
     old = read_manifest(d)
-    if old is not None and canonical_json(old["parameters"]) != canonical_json(params):
-        raise ValueError(
-            f"{d / MANIFEST_NAME} records different sweep parameters; use another --out"
-        )
+    _check_manifest_parameters(d, specs, params, old)
     cases: dict[str, dict[str, Any]] = {}
     if old is not None:
         cases.update({c["stem"]: c for c in old["cases"]})
@@ -562,6 +659,25 @@ def write_manifest(
         manifest["last_run"] = old["last_run"]
     atomic_write_json(d / MANIFEST_NAME, manifest)
     return manifest
+
+
+def _check_manifest_parameters(
+    d: Path, specs: Sequence[CaseSpec], params: dict[str, Any], old: dict | None
+) -> None:
+    """ValueError if the specs do not share ``params`` or the manifest ``old`` records others."""
+    for s in specs[1:]:
+        if sweep_parameters(s) != params:
+            raise ValueError(
+                "all cases of one sweep must share diameter, jaw length, gap, "
+                "force cap, mesh and solver settings"
+            )
+    if old is not None and canonical_json(old["parameters"]) != canonical_json(params):
+        diffs = parameter_differences(old["parameters"], params)
+        raise ValueError(
+            f"{d / MANIFEST_NAME} records different sweep parameters "
+            f"({format_differences(diffs) or 'layout'}; sweep.json != this run); "
+            "use another --out"
+        )
 
 
 def known_stems(directory: str | os.PathLike[str]) -> list[str]:

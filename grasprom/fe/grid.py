@@ -28,6 +28,16 @@ KNOWN_MATERIALS = MATERIAL_NAMES
 
 _THICKNESS_DECIMALS = 6
 
+MAX_CASES = 1000
+"""Default limit on the cases of one sweep (thicknesses x materials); the environment variable
+``GRASPROM_MAX_CASES`` or the ``max_cases`` argument of :func:`build_grid` changes it."""
+
+MAX_CASES_ENV = "GRASPROM_MAX_CASES"
+"""Environment variable overriding :data:`MAX_CASES`."""
+
+PLAUSIBLE_THICKNESS_MM = (0.1, 10.0)
+"""Plausible colon wall thicknesses in mm, inclusive (outside: most likely m or um given)."""
+
 
 class SweepInputError(ValueError):
     """Bad sweep input (grid, parameters, output directory); the message names the culprit."""
@@ -58,7 +68,60 @@ def _dec(text: str, what: str) -> Decimal:
     return d
 
 
-def parse_thickness(text: str) -> list[float]:
+def case_limit() -> int:
+    """The case limit of a sweep: ``GRASPROM_MAX_CASES`` if set, else :data:`MAX_CASES`.
+
+    Raises
+    ------
+    SweepInputError
+        If ``GRASPROM_MAX_CASES`` is not a positive integer.
+    """
+    text = os.environ.get(MAX_CASES_ENV, "").strip()
+    if not text:
+        return MAX_CASES
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise SweepInputError(f"{MAX_CASES_ENV}: must be a positive integer, got {text!r}")
+    return n
+
+
+def _too_many(what: str, n: int, limit: int) -> SweepInputError:
+    return SweepInputError(
+        f"{what}: {n} cases exceed the limit of {limit} cases per sweep; use a coarser "
+        f"--thickness step or fewer values, or raise the limit with {MAX_CASES_ENV}=<n> "
+        "(or build_grid(..., max_cases=n))"
+    )
+
+
+def check_plausible_thickness(t: float, what: str = "--thickness") -> None:
+    """Refuse a wall thickness outside :data:`PLAUSIBLE_THICKNESS_MM` (a unit mistake).
+
+    Parameters
+    ----------
+    t : float
+        Wall thickness in mm.
+    what : str
+        Where the value came from (option or file), named in the message.
+
+    Raises
+    ------
+    SweepInputError
+        Naming the value, the unit and the plausible range.
+    """
+    lo, hi = PLAUSIBLE_THICKNESS_MM
+    if lo <= t <= hi:
+        return
+    hint = "given in m or cm?" if t < lo else "given in um?"
+    raise SweepInputError(
+        f"{what}: wall thickness {t:g} mm is outside the plausible range {lo:g}-{hi:g} mm "
+        f"(thicknesses are in mm; {hint})"
+    )
+
+
+def parse_thickness(text: str, limit: int | None = None) -> list[float]:
     """Parse a ``--thickness`` value into wall thicknesses in mm.
 
     Parameters
@@ -66,6 +129,8 @@ def parse_thickness(text: str) -> list[float]:
     text : str
         ``"start:stop:step"`` (inclusive of ``stop`` when it lies on the grid),
         a comma list ``"0.8,1.0"`` or a single value ``"1.2"``; all in mm.
+    limit : int, optional
+        Most values allowed (default :func:`case_limit`); checked before the values are built.
 
     Returns
     -------
@@ -76,8 +141,10 @@ def parse_thickness(text: str) -> list[float]:
     Raises
     ------
     SweepInputError
-        On malformed text, a non-positive step, ``stop < start`` or an empty result.
+        On malformed text, a non-positive step, ``stop < start``, an empty result or more
+        than ``limit`` values.
     """
+    limit = case_limit() if limit is None else int(limit)
     text = str(text).strip()
     if not text:
         raise SweepInputError("--thickness: empty value (give e.g. 0.8:2.0:0.1, 0.8,1.0 or 1.2)")
@@ -95,11 +162,15 @@ def parse_thickness(text: str) -> list[float]:
                 f"--thickness: empty grid, stop {stop} < start {start} in {text!r}"
             )
         n = int((stop - start) / step)  # exact decimal arithmetic: floor
+        if n + 1 > limit:
+            raise _too_many(f"--thickness: range {text!r}", n + 1, limit)
         values = [float(round(start + i * step, _THICKNESS_DECIMALS)) for i in range(n + 1)]
     else:
         items = [p for p in text.split(",") if p.strip()]
         if not items:
             raise SweepInputError(f"--thickness: empty grid in {text!r}")
+        if len(items) > limit:
+            raise _too_many("--thickness: list", len(items), limit)
         values = [float(round(_dec(p, "value"), _THICKNESS_DECIMALS)) for p in items]
     return _unique(values)
 
@@ -207,6 +278,7 @@ def build_grid(
     n_layers: int | None = None,
     n_circ: int | None = None,
     out_dir: str | os.PathLike[str] | None = None,
+    max_cases: int | None = None,
 ) -> list[CaseSpec]:
     """Build and validate the thickness x material grid of cases.
 
@@ -226,6 +298,9 @@ def build_grid(
         :class:`~grasprom.fe.model2d.MeshSpec` default.
     out_dir : str or os.PathLike, optional
         If given, created if needed and checked for writability.
+    max_cases : int, optional
+        Most cases allowed (thicknesses x materials); default ``GRASPROM_MAX_CASES`` or
+        :data:`MAX_CASES` (1000).
 
     Returns
     -------
@@ -237,16 +312,21 @@ def build_grid(
     SweepInputError
         With a message naming the offending option (``--thickness``, ``--material``,
         ``--diameter``, ``--jaw-length``, ``--closed-gap``, ``--force-cap``, ``--n-layers``,
-        ``--n-circ``, ``--out``) and value.
+        ``--n-circ``, ``--out``) and value; also a thickness outside
+        :data:`PLAUSIBLE_THICKNESS_MM` (a unit mistake) and a grid over the case limit.
     """
+    limit = _case_limit(max_cases)
     t_list = (
-        parse_thickness(thickness)
+        parse_thickness(thickness, limit)
         if isinstance(thickness, str)
         else _unique(round(float(t), _THICKNESS_DECIMALS) for t in thickness)
     )
     mats = parse_materials(materials)
     if not t_list:
         raise SweepInputError("--thickness: empty grid")
+    if len(t_list) * len(mats) > limit:
+        n = len(t_list) * len(mats)
+        raise _too_many(f"--thickness x --material: {len(t_list)} x {len(mats)}", n, limit)
     lengths = {
         "diameter_mm": diameter_mm,
         "jaw_length_mm": jaw_length_mm,
@@ -267,6 +347,15 @@ def build_grid(
     if out_dir is not None:
         check_out_dir(out_dir)
     return specs
+
+
+def _case_limit(max_cases: int | None) -> int:
+    """The case limit: ``max_cases`` if given (a positive integer), else :func:`case_limit`."""
+    if max_cases is None:
+        return case_limit()
+    if isinstance(max_cases, bool) or not isinstance(max_cases, int) or max_cases < 1:
+        raise SweepInputError(f"max_cases: must be a positive integer, got {max_cases!r}")
+    return max_cases
 
 
 _OPTION_NAMES = {
@@ -311,3 +400,4 @@ def _check_geometry(t_list: list[float], kw: dict[str, float]) -> None:
                 f"--thickness: wall thickness {t:g} mm must be smaller than the outer radius "
                 f"{radius:g} mm (diameter {diameter:g} mm)"
             )
+        check_plausible_thickness(t)

@@ -243,6 +243,13 @@ def ring_mesh(outer_radius: float, thickness: float, mesh: MeshSpec):
 
 ELEMENTS = ("P2B/P1", "P2/P0")
 
+ELEMENT_DESCRIPTIONS = {
+    "P2B/P1": "P2 triangle + cubic bubble, 6-point rule, linear discontinuous pressure and "
+    "dilatation per element (P2B/P1)",
+    "P2/P0": "P2 triangle, 6-point rule, per-element mean dilatation (P2/P0)",
+}
+"""The ``fe_info.element`` text of a case sidecar, per :attr:`MeshSpec.element`."""
+
 
 @dataclass(frozen=True)
 class _Discretisation:
@@ -736,7 +743,7 @@ def _solver_record(
         "material_constants": material.constants(),
         "mesh": asdict(spec.mesh),
         "solver": asdict(spec.solver),
-        "element": "P2 triangle, 6-point rule, per-element mean dilatation (P2/P0)",
+        "element": ELEMENT_DESCRIPTIONS[spec.mesh.element],
         "force_definition": "force_N = 2 x quarter-model reaction (N/mm) x jaw_length_mm",
     }
 

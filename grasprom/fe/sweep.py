@@ -10,22 +10,36 @@ Each finished case is written atomically by the parent process as soon as it com
 the same command skips them. Cases run in a local process pool, in-process
 (``workers=1``) or on an existing Dask distributed cluster (``scheduler="tcp://..."``).
 
+A run holds an exclusive lock on ``<out>/.sweep.lock`` (:func:`sweep_lock`): a concurrent sweep
+into the same directory with other parameters is refused (:class:`SweepConflictError`), one
+with the same parameters waits for the first to finish and then skips every case it finished
+(so no case is computed twice). Pool workers exit when the main process dies (a watchdog
+thread and, on Linux, ``PR_SET_PDEATHSIG``), so killing it leaves no process behind.
+
 Units: lengths in mm, forces in N, times in s.
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import dataclasses
+import json
 import multiprocessing
 import os
+import signal
+import socket
+import sys
+import threading
 import time
 import traceback
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from grasprom.fe import datafiles as df
+from grasprom.fe.atomicio import AtomicWriteError
 from grasprom.fe.grid import SweepInputError, check_out_dir
 from grasprom.fe.model2d import CaseResult, CaseSpec
 from grasprom.fe.provenance import now_iso, provenance
@@ -34,7 +48,218 @@ Runner = Callable[[CaseSpec], CaseResult]
 
 
 class SweepConflictError(SweepInputError):
-    """The output directory holds finished cases computed from different inputs."""
+    """The output directory holds finished cases computed from different inputs, or another
+    sweep with different parameters is writing into it right now."""
+
+
+class SweepWriteError(AtomicWriteError, SweepInputError):
+    """A case, error record or manifest could not be written (e.g. the disk is full).
+
+    An :class:`OSError` (``filename`` is the file) and a :class:`SweepInputError` (the CLI
+    reports it as a usage error, exit code 2). Nothing partial is left behind; finished
+    cases are kept and a rerun resumes.
+    """
+
+    def __str__(self) -> str:
+        return (
+            f"--out: cannot write {self.filename}: {self.strerror} (nothing partial was left; "
+            "finished cases are kept: free space and rerun the same command to resume)"
+        )
+
+
+LOCK_NAME = ".sweep.lock"
+"""Lock file of a sweep directory (see :func:`sweep_lock`); it stays after the run."""
+
+LOCK_POLL_S = 0.1
+"""Poll interval in s while waiting for the lock of a sweep directory."""
+
+WATCHDOG_POLL_S = 0.2
+"""Interval in s at which a pool worker checks that the sweep's main process is alive."""
+
+
+# --------------------------------------------------------------------------- lock
+
+
+@contextlib.contextmanager
+def sweep_lock(
+    out_dir: str | os.PathLike[str],
+    parameters: dict[str, Any],
+    *,
+    timeout_s: float | None = None,
+    notify: Callable[[str], None] | None = None,
+) -> Iterator[Path]:
+    """Hold the exclusive lock of a sweep directory for the duration of a run.
+
+    An exclusive :func:`fcntl.flock` on ``<out_dir>/.sweep.lock`` (released by the kernel
+    when the process dies, so a stale lock file of a killed sweep is harmless). The holder
+    records its pid, host and sweep parameters in the file. A second sweep into the same
+    directory
+
+    * with other parameters refuses at once (:class:`SweepConflictError` naming the running
+      sweep's pid and the first differing parameters);
+    * with the same parameters waits until the first one finishes (then it skips every case
+      the first one finished, see :func:`run_sweep`), so no case is computed twice.
+
+    Parameters
+    ----------
+    out_dir : str or os.PathLike
+        The sweep directory (must exist).
+    parameters : dict
+        This run's shared parameters (:func:`grasprom.fe.datafiles.sweep_parameters`).
+    timeout_s : float, optional
+        Longest wait in s for a sweep with the same parameters; None waits as long as it
+        runs.
+    notify : callable, optional
+        Called once with a message when this run has to wait.
+
+    Yields
+    ------
+    pathlib.Path
+        The lock file.
+
+    Raises
+    ------
+    SweepConflictError
+        Another sweep with other parameters holds the lock, or the wait timed out.
+    SweepInputError
+        The lock file cannot be created or locked.
+    """
+    import fcntl
+
+    path = Path(out_dir) / LOCK_NAME
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+    except OSError as exc:
+        raise SweepInputError(
+            f"--out: cannot create the lock file {path} ({exc.strerror or exc})"
+        ) from None
+    try:
+        _wait_for_lock(fcntl, fd, path, parameters, timeout_s, notify)
+        try:
+            _write_lock_record(fd, parameters)
+            yield path
+        finally:
+            with contextlib.suppress(OSError):
+                os.ftruncate(fd, 0)  # the lock file stays (see LOCK_NAME), its record goes
+    finally:
+        os.close(fd)  # releases the flock
+
+
+def _wait_for_lock(fcntl, fd, path, parameters, timeout_s, notify) -> None:
+    """Take the flock on ``fd``, waiting while a sweep with the same parameters holds it."""
+    deadline = None if timeout_s is None else time.monotonic() + float(timeout_s)
+    told = False
+    while True:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return
+        except BlockingIOError:
+            pass
+        except OSError as exc:
+            raise SweepInputError(
+                f"--out: cannot lock {path} ({exc.strerror or exc}); is the directory on a "
+                "file system without locks?"
+            ) from None
+        holder = read_lock_record(path)
+        who = f"pid {holder['pid']} on {holder['host']}" if holder else "another process"
+        if holder is not None:
+            diffs = df.parameter_differences(holder["parameters"], parameters)
+            if diffs:
+                raise SweepConflictError(
+                    f"--out: {path.parent} is being written right now by another sweep ({who}) "
+                    f"with different parameters ({df.format_differences(diffs)}; running != "
+                    "this run); use another --out directory or wait for it to finish"
+                )
+        if not told and notify is not None:
+            notify(
+                f"waiting for the sweep already running in {path.parent} ({who}); the cases "
+                "it finishes will be skipped"
+            )
+            told = True
+        if deadline is not None and time.monotonic() > deadline:
+            raise SweepConflictError(
+                f"--out: {path.parent} is still locked by {who} after {timeout_s:g} s "
+                f"(lock file {path})"
+            )
+        time.sleep(LOCK_POLL_S)
+
+
+def _write_lock_record(fd: int, parameters: dict[str, Any]) -> None:
+    record = {
+        "pid": os.getpid(),
+        "host": socket.gethostname(),
+        "started": now_iso(),
+        "parameters": parameters,
+    }
+    data = json.dumps(record, default=str).encode()
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, data, 0)
+
+
+def read_lock_record(path: str | os.PathLike[str]) -> dict[str, Any] | None:
+    """The record of the sweep holding a lock file (pid, host, started, parameters).
+
+    Returns
+    -------
+    dict or None
+        None if the file is empty, unreadable, or names a dead process on this host (the
+        record of a killed sweep, or the holder has not written its record yet).
+    """
+    try:
+        rec = json.loads(Path(path).read_bytes().decode("utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(rec, dict) or not isinstance(rec.get("parameters"), dict):
+        return None
+    if not isinstance(rec.get("pid"), int) or not isinstance(rec.get("host"), str):
+        return None
+    if rec["host"] == socket.gethostname():
+        try:
+            os.kill(rec["pid"], 0)
+        except ProcessLookupError:
+            return None
+        except PermissionError:
+            pass
+    return rec
+
+
+# --------------------------------------------------------------------------- workers
+
+
+def _set_parent_death_signal() -> None:
+    """Linux: have the kernel SIGKILL this process when its parent dies (no-op elsewhere)."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)  # PR_SET_PDEATHSIG = 1
+    except (OSError, AttributeError):
+        pass  # the watchdog thread still covers it
+
+
+def _watch_parent(parent_pid: int) -> None:
+    while True:
+        if os.getppid() != parent_pid:
+            os._exit(1)
+        time.sleep(WATCHDOG_POLL_S)
+
+
+def _worker_init(parent_pid: int) -> None:
+    """Initializer of the pool workers: exit as soon as the sweep's main process dies.
+
+    ``PR_SET_PDEATHSIG`` on Linux, and everywhere a daemon thread polling
+    :func:`os.getppid` against ``parent_pid`` every :data:`WATCHDOG_POLL_S` s; without it,
+    killing only the main process leaves the workers (and through them multiprocessing's
+    resource tracker) blocked forever.
+    """
+    _set_parent_death_signal()
+    if os.getppid() != parent_pid:  # the parent died before the signal was armed
+        os._exit(1)
+    threading.Thread(
+        target=_watch_parent, args=(parent_pid,), name="grasprom-parent-watchdog", daemon=True
+    ).start()
 
 
 # --------------------------------------------------------------------------- runner
@@ -154,12 +379,33 @@ def _existing_status(out_dir: Path, spec: CaseSpec) -> str | None:
         return None
     case = df.read_case(files.json)
     if case.meta["input_hash"] != df.input_hash(spec):
+        theirs = case.meta.get("spec") if isinstance(case.meta.get("spec"), dict) else {}
+        diffs = df.parameter_differences(theirs, dataclasses.asdict(spec))
         raise SweepConflictError(
             f"--out: {files.json} was computed with different inputs "
-            f"(input_hash {str(case.meta['input_hash'])[:12]}... != "
-            f"{df.input_hash(spec)[:12]}...); use another --out directory"
+            f"({df.format_differences(diffs) or 'input_hash differs'}; file != this run); "
+            "use another --out directory"
         )
     return str(case.meta["status"])
+
+
+def _check_foreign_cases(out_dir: Path, stems: Sequence[str], params: dict[str, Any]) -> None:
+    """SweepConflictError if a sidecar outside this grid records other sweep parameters."""
+    own = set(stems)
+    for jp in df.case_json_paths(out_dir):
+        if jp.stem in own:
+            continue  # read in full by _existing_status
+        meta = df.read_json_file(jp)
+        theirs = df.case_parameters(meta) if isinstance(meta, dict) else None
+        if theirs is None:
+            continue
+        diffs = df.parameter_differences(theirs, params)
+        if diffs:
+            raise SweepConflictError(
+                f"--out: {jp} was computed with other sweep parameters "
+                f"({df.format_differences(diffs)}; file != this run); use another --out "
+                "directory"
+            )
 
 
 def _progress_bar(total: int, initial: int, enabled: bool):
@@ -184,8 +430,13 @@ def run_sweep(
     *,
     runner: Runner = default_runner,
     scheduler_timeout_s: float = 30.0,
+    lock_timeout_s: float | None = None,
 ) -> SweepSummary:
     """Run a grid of cases, resumably, writing each finished case as soon as it completes.
+
+    The run holds the lock of ``out_dir`` (:func:`sweep_lock`): a concurrent sweep with other
+    parameters is refused, one with the same parameters waits and then skips what this one
+    finished. Pool workers exit when this process dies.
 
     Parameters
     ----------
@@ -205,6 +456,9 @@ def run_sweep(
         Must be a module-level function (picklable) unless ``workers=1``.
     scheduler_timeout_s : float, keyword-only
         Time in s to wait for the Dask scheduler connection.
+    lock_timeout_s : float, keyword-only, optional
+        Longest wait in s for another sweep with the same parameters running in ``out_dir``
+        (None: as long as it runs).
 
     Returns
     -------
@@ -213,8 +467,10 @@ def run_sweep(
     Raises
     ------
     SweepInputError
-        Bad ``out_dir``, ``workers``, mixed parameters, or existing cases computed from
-        different inputs (:class:`SweepConflictError`).
+        Bad ``out_dir``, ``workers``, mixed parameters, existing cases computed from
+        different inputs or a concurrent sweep with other parameters
+        (:class:`SweepConflictError`), or a write that failed, e.g. on a full disk
+        (:class:`SweepWriteError`, also an :class:`OSError`).
     CorruptCaseError
         If a finished case on disk fails validation; raised before anything runs and the
         file is left untouched.
@@ -223,7 +479,22 @@ def run_sweep(
     specs = list(specs)
     stems = _check_run_inputs(specs, workers, scheduler)
     out = check_out_dir(out_dir)
+    params = df.sweep_parameters(specs[0])
+    with sweep_lock(out, params, timeout_s=lock_timeout_s, notify=_notifier(progress)):
+        return _run_locked(
+            out, specs, stems, workers, scheduler, progress, runner, scheduler_timeout_s, t_start
+        )
 
+
+def _notifier(progress: bool) -> Callable[[str], None] | None:
+    """Print lock-wait messages on stderr when the progress display is on."""
+    if not progress:
+        return None
+    return lambda msg: print(f"grasprom sweep: {msg}", file=sys.stderr, flush=True)
+
+
+def _run_locked(out, specs, stems, workers, scheduler, progress, runner, timeout_s, t_start):
+    """The body of :func:`run_sweep`, run while holding the lock of ``out``."""
     status = _disk_status(out, specs, stems)
     skipped = [stem for stem in stems if status[stem] is not None]
     todo = [i for i, stem in enumerate(stems) if status[stem] is None]
@@ -234,9 +505,7 @@ def run_sweep(
     bar = _progress_bar(len(specs), len(skipped), progress)
     try:
         if todo:
-            _dispatch(
-                workers, scheduler, runner, specs, todo, writer.handle, bar, scheduler_timeout_s
-            )
+            _dispatch(workers, scheduler, runner, specs, todo, writer.handle, bar, timeout_s)
     finally:
         bar.close()
 
@@ -263,11 +532,19 @@ def _disk_status(out: Path, specs: list[CaseSpec], stems: list[str]) -> dict[str
     status: dict[str, str | None] = {
         stem: _existing_status(out, s) for stem, s in zip(stems, specs)
     }
-    try:
-        df.write_manifest(out, specs)
-    except ValueError as exc:
-        raise SweepInputError(f"--out: {exc}") from None
+    _check_foreign_cases(out, stems, df.sweep_parameters(specs[0]))
+    _write_manifest(out, specs)
     return status
+
+
+def _write_manifest(out: Path, specs: Sequence[CaseSpec], **kw: Any) -> None:
+    """:func:`~grasprom.fe.datafiles.write_manifest` with its errors as sweep errors."""
+    try:
+        df.write_manifest(out, specs, **kw)
+    except AtomicWriteError as exc:
+        raise SweepWriteError(exc.errno, exc.strerror, exc.filename) from None
+    except ValueError as exc:
+        raise SweepConflictError(f"--out: {exc}") from None
 
 
 def _check_run_inputs(
@@ -285,6 +562,14 @@ def _check_run_inputs(
     stems = [df.spec_stem(s) for s in specs]
     if len(set(stems)) != len(stems):
         raise SweepInputError("duplicate cases in the grid (same material and thickness)")
+    first = df.sweep_parameters(specs[0])
+    for s in specs[1:]:
+        diffs = df.parameter_differences(first, df.sweep_parameters(s))
+        if diffs:
+            raise SweepInputError(
+                f"cases of one sweep must share their parameters; {stems[0]} and "
+                f"{df.spec_stem(s)} differ in {df.format_differences(diffs)}"
+            )
     return stems
 
 
@@ -314,6 +599,8 @@ class _CaseWriter:
                 df.write_case(
                     out, spec, outcome.result, wall_time_s=outcome.wall_time_s, prov=self.prov
                 )
+            except AtomicWriteError as exc:
+                raise SweepWriteError(exc.errno, exc.strerror, exc.filename) from None
             except ValueError as exc:
                 outcome = dataclasses.replace(
                     outcome,
@@ -329,7 +616,10 @@ class _CaseWriter:
                     err.unlink()
                 return
         msg = outcome.error or "unknown error"
-        df.write_error(out, stem, msg, outcome.traceback or "")
+        try:
+            df.write_error(out, stem, msg, outcome.traceback or "")
+        except AtomicWriteError as exc:
+            raise SweepWriteError(exc.errno, exc.strerror, exc.filename) from None
         self.failed.append((stem, msg))
 
 
@@ -353,7 +643,7 @@ def _record_run(
     scheduler: str | None,
 ) -> None:
     """Record the run's summary as ``last_run`` in the sweep manifest."""
-    df.write_manifest(
+    _write_manifest(
         out,
         specs,
         last_run={
@@ -374,7 +664,9 @@ def _run_pool(workers, runner, specs, todo, handle, bar) -> None:
     """Run cases in a spawn-context process pool, handling each result as it completes."""
     n = min(workers or os.cpu_count() or 1, len(todo))
     ctx = multiprocessing.get_context("spawn")
-    pool = cf.ProcessPoolExecutor(max_workers=n, mp_context=ctx)
+    pool = cf.ProcessPoolExecutor(
+        max_workers=n, mp_context=ctx, initializer=_worker_init, initargs=(os.getpid(),)
+    )
     try:
         futs = {pool.submit(execute_case, runner, i, specs[i]): i for i in todo}
         for fut in cf.as_completed(futs):

@@ -51,21 +51,32 @@ from grasprom.surrogate.build import (
     reduce_case,
     select_nodes,
 )
-from grasprom.surrogate.fedata import FECase, fe_dir_hash, fe_hash, read_fe_cases
-from grasprom.surrogate.fileformat import FORMAT_NAME, FORMAT_VERSION, SurrogateFileError
+from grasprom.surrogate.fedata import FECase, FEDataError, fe_dir_hash, fe_hash, read_fe_cases
+from grasprom.surrogate.fileformat import (
+    FORMAT_NAME,
+    FORMAT_VERSION,
+    SurrogateFileError,
+    SurrogateWriteError,
+    check_content,
+)
 from grasprom.surrogate.plots import plot_surrogate
 from grasprom.surrogate.spline import SplineTable
 from grasprom.surrogate.table import Surrogate, clamp_thickness, load_surrogate
 from grasprom.surrogate.validation import (
+    CHECK_TOLERANCE,
     case_errors,
+    check_passed,
+    check_verdict,
     error_figures,
     fe_point_stiffness,
+    format_check,
     format_errors,
     invert_gap,
     leave_one_out,
 )
 
 __all__ = [
+    "CHECK_TOLERANCE",
     "CONTACT_GAP_METHODS",
     "FORMAT_NAME",
     "FORMAT_VERSION",
@@ -73,16 +84,22 @@ __all__ = [
     "BuildParams",
     "Curve",
     "FECase",
+    "FEDataError",
     "SplineTable",
     "Surrogate",
     "SurrogateFileError",
+    "SurrogateWriteError",
     "case_errors",
+    "check_content",
+    "check_passed",
+    "check_verdict",
     "clamp_thickness",
     "contact_gap",
     "error_figures",
     "fe_dir_hash",
     "fe_hash",
     "fe_point_stiffness",
+    "format_check",
     "format_errors",
     "invert_gap",
     "leave_one_out",

@@ -15,6 +15,29 @@ from pathlib import Path
 
 import numpy as np
 
+PLAUSIBLE_THICKNESS_MM = (0.1, 10.0)
+"""Wall thicknesses (mm) a case may have; outside, most likely a unit mistake (m, um)."""
+
+
+class FEDataError(ValueError):
+    """An FE case file the surrogate reads is implausible or does not belong to its sweep.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The offending file.
+    reason : str
+        What is wrong with it.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], reason: str) -> None:
+        self.path = Path(path)
+        self.reason = reason
+        super().__init__(f"FE case file {self.path}: {reason}")
+
+    def __reduce__(self):  # keep picklable despite the custom signature
+        return (type(self), (str(self.path), self.reason))
+
 
 @dataclass(frozen=True)
 class FECase:
@@ -75,29 +98,32 @@ def read_fe_cases(directory: str | os.PathLike[str]) -> tuple[list[FECase], list
     grasprom.fe.datafiles.CorruptCaseError
         If a case file fails validation (hash, columns).
     ValueError
-        If a CSV holds NaN/inf in ``gap_mm`` or ``force_N``, or its gaps do not decrease
-        strictly (the message names the file).
+        If a CSV holds NaN/inf in ``gap_mm`` or ``force_N``, fewer than 2 rows, or its gaps
+        do not decrease strictly (the message names the file).
+    FEDataError
+        (a ValueError) naming the file and the key: a sidecar whose sweep parameters differ
+        from the manifest's ``sweep.json`` (or, without a manifest, from the first case's),
+        a case missing from the manifest or with another ``input_hash``, a material or
+        thickness that disagrees with the file name, an unknown material or a thickness
+        outside :data:`PLAUSIBLE_THICKNESS_MM`.
     """
     from grasprom.fe import datafiles
 
     d = Path(directory)
     if not d.is_dir():
         raise FileNotFoundError(f"FE sweep directory {d} does not exist")
+    reference = _reference_parameters(d)
     cases: list[FECase] = []
     partial: list[str] = []
     for jp in datafiles.case_json_paths(d):
         lc = datafiles.read_case(jp)
+        reference = _check_case_meta(jp, lc.meta, reference)
         meta = lc.meta
         stem = str(meta.get("stem", jp.stem))
         if meta["status"] != "complete":
             partial.append(stem)
             continue
-        g = lc.table["gap_mm"].to_numpy(dtype=float)
-        f = lc.table["force_N"].to_numpy(dtype=float)
-        if not (np.isfinite(g).all() and np.isfinite(f).all()):
-            raise ValueError(f"{lc.files.csv}: NaN or inf in gap_mm/force_N")
-        if g.size < 2 or not (np.diff(g) < 0).all():
-            raise ValueError(f"{lc.files.csv}: gap_mm must decrease strictly (>= 2 rows)")
+        g, f = _curve(lc)
         cases.append(
             FECase(
                 stem=stem,
@@ -115,6 +141,105 @@ def read_fe_cases(directory: str | os.PathLike[str]) -> tuple[list[FECase], list
         raise FileNotFoundError(f"FE sweep directory {d} holds no case files")
     cases.sort(key=lambda c: (c.material, c.thickness_mm))
     return cases, partial
+
+
+def _reference_parameters(d: Path) -> dict | None:
+    """The manifest of ``d`` as ``{"parameters", "cases", "path"}``, or None without one."""
+    from grasprom.fe import datafiles
+
+    man = datafiles.read_manifest(d)
+    if man is None:
+        return None
+    cases = {c.get("stem"): c for c in man["cases"] if isinstance(c, dict)}
+    return {"parameters": man["parameters"], "cases": cases, "path": d / "sweep.json"}
+
+
+def _check_case_meta(jp: Path, meta: dict, reference: dict | None) -> dict:
+    """Check one sidecar against its file name, the materials and the sweep's parameters.
+
+    ``reference`` is the manifest (see :func:`_reference_parameters`) or, without one, the
+    first case's parameters (None for the first case); returns the reference to use next.
+    """
+    from grasprom.fe import datafiles
+    from grasprom.fe.materials import MATERIAL_NAMES
+
+    material, t = str(meta["material"]), meta["thickness_mm"]
+    if material not in MATERIAL_NAMES:
+        raise FEDataError(jp, f"unknown material {material!r} (known: {', '.join(MATERIAL_NAMES)})")
+    if not isinstance(t, (int, float)) or isinstance(t, bool) or not np.isfinite(t):
+        raise FEDataError(jp, f"thickness_mm {t!r} is not a finite number")
+    lo, hi = PLAUSIBLE_THICKNESS_MM
+    if not lo <= t <= hi:
+        raise FEDataError(
+            jp,
+            f"thickness_mm {t:g} mm is outside the plausible range {lo:g}-{hi:g} mm "
+            "(thicknesses are in mm: a unit mistake?)",
+        )
+    named = datafiles.parse_stem(jp.stem)
+    if named is not None and (named[0] != material or abs(named[1] - t) > 0.0051):
+        raise FEDataError(
+            jp, f"material {material!r} / thickness_mm {t:g} disagree with the file name"
+        )
+    params = datafiles.case_parameters(meta)
+    if params is None:
+        return reference or {}
+    _check_geometry(jp, meta, params)
+    if reference is None:
+        return {"parameters": params, "cases": None, "path": jp}
+    if not reference:
+        return reference
+    diffs = datafiles.parameter_differences(reference["parameters"], params)
+    if diffs:
+        raise FEDataError(
+            jp,
+            f"sweep parameters differ from {reference['path']} "
+            f"({datafiles.format_differences(diffs)}; {reference['path'].name} != this file); "
+            "cases of different sweeps are mixed in one directory",
+        )
+    _check_listed(jp, meta, reference)
+    return reference
+
+
+_GEOMETRY_KEYS = ("diameter_mm", "jaw_length_mm", "closed_gap_mm", "force_cap_N")
+
+
+def _check_geometry(jp: Path, meta: dict, params: dict) -> None:
+    """Positive finite geometry (mm, N), the sidecar's copies equal to its ``spec``."""
+    for key in _GEOMETRY_KEYS:
+        v = params.get(key)
+        if v is None:
+            continue
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 < v < np.inf:
+            raise FEDataError(jp, f"spec {key} = {v!r} must be a positive finite number")
+        if key in meta and meta[key] != v:
+            raise FEDataError(jp, f"{key} = {meta[key]!r} disagrees with its spec ({v!r})")
+
+
+def _check_listed(jp: Path, meta: dict, reference: dict) -> None:
+    """A case must be listed in the manifest with the same input hash (if there is one)."""
+    listed = reference["cases"]
+    if listed is None:
+        return
+    entry = listed.get(jp.stem)
+    if entry is None:
+        raise FEDataError(jp, f"case {jp.stem!r} is not listed in {reference['path']}")
+    if entry.get("input_hash") != meta.get("input_hash"):
+        raise FEDataError(
+            jp, f"input_hash differs from the one {reference['path']} records for {jp.stem!r}"
+        )
+
+
+def _curve(lc) -> tuple[np.ndarray, np.ndarray]:
+    """Gap and force columns of a complete case (mm, N), checked (ValueError naming the CSV)."""
+    g = lc.table["gap_mm"].to_numpy(dtype=float)
+    f = lc.table["force_N"].to_numpy(dtype=float)
+    if not (np.isfinite(g).all() and np.isfinite(f).all()):
+        raise ValueError(f"{lc.files.csv}: NaN or inf in gap_mm/force_N")
+    if g.size < 2:
+        raise FEDataError(lc.files.csv, f"{g.size} row(s); a force-gap curve needs >= 2")
+    if not (np.diff(g) < 0).all():
+        raise ValueError(f"{lc.files.csv}: gap_mm must decrease strictly (>= 2 rows)")
+    return g, f
 
 
 def fe_hash(cases: Iterable[FECase]) -> str:

@@ -17,9 +17,14 @@ import numpy as np
 
 from grasprom.surrogate import fileformat
 from grasprom.surrogate.build import SCHEMES, BuildParams, Curve, reduce_case
-from grasprom.surrogate.fedata import FECase, fe_hash, read_fe_cases
+from grasprom.surrogate.fedata import FECase, fe_dir_hash, fe_hash, read_fe_cases
 from grasprom.surrogate.spline import THICKNESS_TOL_MM, SplineTable
-from grasprom.surrogate.validation import error_figures, leave_one_out
+from grasprom.surrogate.validation import (
+    CHECK_TOLERANCE,
+    check_verdict,
+    error_figures,
+    leave_one_out,
+)
 
 
 class Surrogate:
@@ -309,8 +314,13 @@ class Surrogate:
         return -self.table(material).scalar(gap_mm, thickness_mm, self.params.scheme)[1]
 
     # ---------------------------------------------------------------- accuracy
-    def check(self, fe_dir: str | os.PathLike[str], schemes: Sequence[str] = SCHEMES) -> dict:
-        """Error figures against the FE cases of a directory, for each scheme.
+    def check(
+        self,
+        fe_dir: str | os.PathLike[str],
+        schemes: Sequence[str] = SCHEMES,
+        tolerance: Mapping[str, float] | None = None,
+    ) -> dict:
+        """Error figures against the FE cases of a directory, for each scheme, and a verdict.
 
         Parameters
         ----------
@@ -319,11 +329,19 @@ class Surrogate:
             the surrogate's materials or thickness range are skipped with a warning.
         schemes : sequence of str
             Schemes to measure.
+        tolerance : mapping, optional
+            ``{"force_max_pct": %, "gap_max_mm": mm}`` for the surrogate's own scheme in the
+            haptic range, all materials; default :data:`CHECK_TOLERANCE` (3 %, 0.02 mm, the
+            issue 3 targets).
 
         Returns
         -------
         dict
-            ``{"source": str, "skipped": [stems], "schemes": {scheme: error_figures(...)}}``.
+            ``{"source", "skipped": [stems], "schemes": {scheme: error_figures(...)},
+            "tolerance": {...}, "fe_hash": {"file", "source", "source_hash", "match"},
+            "passed": bool, "failures": [str]}``; see
+            :func:`~grasprom.surrogate.validation.check_passed`. ``fe_hash.match`` is None
+            when the FE data the surrogate was built from is not at hand.
         """
         cases, partial = read_fe_cases(fe_dir)
         if partial:
@@ -332,6 +350,7 @@ class Surrogate:
                 UserWarning,
                 stacklevel=2,
             )
+        hash_record = self._hash_record(fe_dir, fe_hash(cases))
         keep, skipped = [], []
         for c in cases:
             ok = c.material in self._tables
@@ -346,14 +365,44 @@ class Surrogate:
                 UserWarning,
                 stacklevel=2,
             )
-        cases = keep
-        return {
+        result: dict[str, Any] = {
             "source": str(fe_dir),
             "skipped": [c.stem for c in skipped],
             "schemes": {
-                sc: error_figures(self.with_scheme(sc), cases, self.params) for sc in schemes
+                sc: error_figures(self.with_scheme(sc), keep, self.params) for sc in schemes
             },
+            "tolerance": {
+                "scheme": self.scheme,
+                "range": "haptic",
+                **{k: float(v) for k, v in (tolerance or CHECK_TOLERANCE).items()},
+            },
+            "fe_hash": hash_record,
         }
+        result["passed"], result["failures"] = check_verdict(result)
+        return result
+
+    def _hash_record(self, fe_dir: str | os.PathLike[str], dir_hash: str) -> dict[str, Any]:
+        """Compare :attr:`fe_hash` with the FE data it was built from, when at hand.
+
+        ``dir_hash`` is the hash of ``fe_dir``'s complete cases; a match means ``fe_dir``
+        is the data the surrogate was built from; otherwise the recorded source directory
+        (:attr:`source`) is hashed if it exists.
+        """
+        rec: dict[str, Any] = {"file": self.fe_hash, "source": None, "source_hash": None}
+        if dir_hash == self.fe_hash:
+            rec.update(source=str(fe_dir), source_hash=dir_hash, match=True)
+            return rec
+        src = _source_dir(self.source)
+        if src is None:
+            rec["match"] = None
+            return rec
+        try:
+            h = dir_hash if _same_dir(src, Path(fe_dir)) else fe_dir_hash(src)
+        except Exception as exc:  # noqa: BLE001 - any unreadable FE data: reported
+            rec.update(source=str(src), match=False, error=str(exc))
+            return rec
+        rec.update(source=str(src), source_hash=h, match=h == self.fe_hash)
+        return rec
 
     # ---------------------------------------------------------------- I/O
     def to_dict(self) -> dict[str, Any]:
@@ -385,18 +434,38 @@ class Surrogate:
         Returns
         -------
         pathlib.Path
+
+        Raises
+        ------
+        SurrogateWriteError
+            (an :class:`OSError` and a :class:`SurrogateFileError`) naming ``path`` if the
+            write fails, e.g. on a full disk; nothing partial is left behind.
         """
-        from grasprom.fe import atomic_write_bytes
+        from grasprom.fe.atomicio import AtomicWriteError, atomic_write_bytes
 
         p = Path(path)
-        atomic_write_bytes(p, fileformat.encode(self.to_dict()))
+        data = fileformat.encode(self.to_dict())
+        try:
+            atomic_write_bytes(p, data)
+        except AtomicWriteError as exc:
+            raise fileformat.SurrogateWriteError(exc.errno, exc.strerror, str(p)) from None
         return p
 
     @classmethod
     def load(
-        cls, path: str | os.PathLike[str], fe_dir: str | os.PathLike[str] | None = None
+        cls,
+        path: str | os.PathLike[str],
+        fe_dir: str | os.PathLike[str] | None = None,
+        *,
+        check_source: bool = True,
     ) -> Surrogate:
-        """Read a surrogate written by :meth:`save`.
+        """Read a surrogate written by :meth:`save`, validating its content.
+
+        The content is checked by :func:`~grasprom.surrogate.fileformat.check_content`
+        (monotone axes, finite values, force and stiffness >= 0, positive geometry, known
+        materials). The FE data hash: with ``fe_dir`` a mismatch is an error; without it,
+        if the FE sweep the file names (``fe_source``) exists here, a mismatch is a
+        :class:`UserWarning` (the sweep may have grown since; the file itself is complete).
 
         Parameters
         ----------
@@ -404,6 +473,8 @@ class Surrogate:
             Surrogate JSON file.
         fe_dir : str or os.PathLike, optional
             The FE sweep it was built from; if given, its :func:`fe_dir_hash` must match.
+        check_source : bool, keyword-only
+            Without ``fe_dir``, compare the hash with the recorded source sweep if present.
 
         Returns
         -------
@@ -412,11 +483,13 @@ class Surrogate:
         Raises
         ------
         SurrogateFileError
-            Missing/unparsable file, other format or version, missing keys, inconsistent
-            table, or FE hash mismatch (the message names the file).
+            Missing/unparsable file, other format or version, missing keys, implausible or
+            inconsistent table, or FE hash mismatch (the message names the file, material,
+            curve and key).
         """
         p = Path(path)
         d = fileformat.read_json(p)
+        fileformat.check_content(p, d)
         try:
             params = BuildParams(**d["params"])
             curves = fileformat.curves_from_dict(p, d["materials"])
@@ -434,7 +507,49 @@ class Surrogate:
             raise fileformat.SurrogateFileError(p, f"inconsistent content ({exc})") from None
         if fe_dir is not None:
             fileformat.check_fe_hash(p, s.fe_hash, fe_dir)
+        elif check_source:
+            _warn_source_hash(p, s)
         return s
+
+
+def _source_dir(source: str) -> Path | None:
+    """The FE sweep directory a surrogate records as its source, if it exists here."""
+    from grasprom.paths import resolve_data_dir
+
+    if not source:
+        return None
+    d = resolve_data_dir(source)
+    return d if d.is_dir() else None
+
+
+def _same_dir(a: Path, b: Path) -> bool:
+    try:
+        return a.resolve() == b.resolve()
+    except OSError:
+        return False
+
+
+def _warn_source_hash(p: Path, s: Surrogate) -> None:
+    """UserWarning if the FE sweep ``s`` was built from is at hand and hashes differently."""
+    src = _source_dir(s.source)
+    if src is None:
+        return
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            h = fe_dir_hash(src)
+    except Exception as exc:  # noqa: BLE001 - any unreadable FE data: reported
+        warnings.warn(
+            f"surrogate file {p}: cannot hash its FE source {src} ({exc})", UserWarning, 3
+        )
+        return
+    if h != s.fe_hash:
+        warnings.warn(
+            f"surrogate file {p}: fe_hash {s.fe_hash[:12]}... differs from its FE source "
+            f"{src} ({h[:12]}...); the FE data changed since the build: rebuild it",
+            UserWarning,
+            stacklevel=3,
+        )
 
 
 def clamp_thickness(surrogate: Surrogate, thickness_mm: float, material: str) -> tuple[float, bool]:

@@ -235,6 +235,95 @@ def leave_one_out(
     return {"schemes": res}
 
 
+CHECK_TOLERANCE = {"force_max_pct": 3.0, "gap_max_mm": 0.02}
+"""Default pass limits of :meth:`Surrogate.check`: the issue 3 targets, largest haptic-range
+force error 3 % of full scale and largest gap error 0.02 mm (own scheme, all materials)."""
+
+
+def check_verdict(result: Mapping[str, Any]) -> tuple[bool, list[str]]:
+    """Whether a :meth:`Surrogate.check` result is within its tolerance, and why not.
+
+    Parameters
+    ----------
+    result : mapping
+        Output of :meth:`Surrogate.check` (``tolerance`` defaults to :data:`CHECK_TOLERANCE`
+        on the first scheme for results without one).
+
+    Returns
+    -------
+    passed : bool
+        True if the haptic-range error figures of the tolerance's scheme (all materials) are
+        within the limits, at least one FE point was compared, and the FE hash does not
+        mismatch.
+    failures : list of str
+        One line per failed criterion (empty if passed).
+    """
+    tol = dict(result.get("tolerance") or {})
+    schemes = result.get("schemes") or {}
+    scheme = tol.get("scheme") or next(iter(schemes), None)
+    fig = (schemes.get(scheme) or {}).get(tol.get("range", "haptic"), {}).get("all")
+    failures = []
+    if not fig or not (fig.get("n_force", 0) or fig.get("n_gap", 0)):
+        failures.append("no FE point within the surrogate's materials and thickness range")
+    else:
+        for key, unit in (("force_max_pct", "%"), ("gap_max_mm", "mm")):
+            limit = float(tol.get(key, CHECK_TOLERANCE[key]))
+            v = fig.get(key)
+            if v is not None and not v <= limit:
+                failures.append(
+                    f"{scheme} haptic {key} {v:.4g} {unit} > tolerance {limit:g} {unit}"
+                )
+    h = result.get("fe_hash") or {}
+    if h.get("match") is False:
+        failures.append(
+            f"fe_hash {str(h.get('file'))[:12]}... of the file != {str(h.get('source_hash'))[:12]}"
+            f"... of its FE source {h.get('source')}: rebuild the surrogate"
+        )
+    return not failures, failures
+
+
+def check_passed(result: Mapping[str, Any]) -> bool:
+    """True if a :meth:`Surrogate.check` result is within its tolerance (see
+    :func:`check_verdict`); the CLI exit code of ``grasprom surrogate check``.
+
+    Parameters
+    ----------
+    result : mapping
+        Output of :meth:`Surrogate.check`.
+
+    Returns
+    -------
+    bool
+    """
+    return check_verdict(result)[0]
+
+
+def format_check(result: Mapping[str, Any]) -> str:
+    """One verdict line (and one line per failure) of a :meth:`Surrogate.check` result.
+
+    Parameters
+    ----------
+    result : mapping
+        Output of :meth:`Surrogate.check`.
+
+    Returns
+    -------
+    str
+        ``"check PASSED (...)"`` or ``"check FAILED: ..."`` lines.
+    """
+    passed, failures = check_verdict(result)
+    tol = {**CHECK_TOLERANCE, **dict(result.get("tolerance") or {})}
+    limits = (
+        f"tolerance: {tol.get('scheme', '?')} haptic force max {tol['force_max_pct']:g} %, "
+        f"gap max {tol['gap_max_mm']:g} mm"
+    )
+    match = (result.get("fe_hash") or {}).get("match")
+    hash_txt = {True: "fe_hash matches", False: "fe_hash MISMATCH", None: "fe_hash not checked"}
+    if passed:
+        return f"check PASSED ({limits}; {hash_txt[match]})"
+    return "\n".join([f"check FAILED ({limits}; {hash_txt[match]}):", *failures])
+
+
 def format_errors(fig: Mapping[str, Any], title: str = "") -> str:
     """Plain-text table of error figures (output of :func:`error_figures`, or of
     :meth:`Surrogate.check` / :func:`leave_one_out` with several schemes).
