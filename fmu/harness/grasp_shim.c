@@ -50,3 +50,9 @@ int gcs_field(double *theta_lo, double *dtheta, double *kg, double *force,
     return 0;
 #endif
 }
+
+/* The passivity observer's energy (J) and the damping of the last step (N m s/rad). */
+void gcs_observer(double *energy, double *alpha) {
+    *energy = S.po_w;
+    *alpha = S.po_alpha;
+}

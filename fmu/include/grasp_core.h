@@ -139,7 +139,16 @@ typedef struct {
     /* rendering scheme of the tissue (grasprom.control.params.RENDERINGS) */
     int rendering;           /* GC_RENDER_COUPLING (0) or GC_RENDER_CLIPPED (1) */
     double stiffness_limit;  /* K_lim of the clipped rendering, N m/rad at the pivot (> 0) */
+    /* time-domain passivity observer / controller (grasprom.control.impedance; clipped only) */
+    int passivity_observer;           /* 0/1; 1 needs rendering = GC_RENDER_CLIPPED */
+    double observer_stiffness_factor; /* the field is built with K_lim x factor when on, >= 1 */
+    double observer_max_damping;      /* cap of the added damping, N m s/rad at the pivot, > 0 */
+    int observer_delay;               /* samples from a step's output to its torque acting on
+                                       * the handle, 0 .. GC_OBS_DELAY_MAX */
 } gc_params_t;
+
+/* Largest observer_delay: grasprom.control.params.OBSERVER_DELAY_MAX (tested). */
+#define GC_OBS_DELAY_MAX 4
 
 /* Rendering schemes (gc_params_t.rendering): the virtual coupling, or the stiffness-clipped
  * field tabulated by gc_build_field() (grasprom.control.field). */
@@ -195,6 +204,14 @@ typedef struct {
     double f_t;
     double f_th_lo, f_dth; /* first node and node spacing, rad */
     double f_kg;           /* K_g, the bound on the slope of the handle force, N/rad at the grip */
+    /* passivity observer (p->passivity_observer = 1) */
+    double po_w;       /* observed energy beyond the reference, J */
+    double po_theta;   /* encoder angle of the last step, rad */
+    int po_has;        /* 0 before the first step */
+    double po_fs_prev; /* static handle force of the last step, N */
+    double po_fh[GC_OBS_DELAY_MAX + 1]; /* saturated handle forces of steps k-1 .. k-1-d, N */
+    double po_pc[GC_OBS_DELAY_MAX + 1]; /* planned dissipation of the same steps, J */
+    double po_alpha;   /* damping added in the last step, N m s/rad */
 #if GC_FIELD_N > 0
     double f_force[GC_FIELD_N];         /* rendered jaw force Fr_j at the nodes, N */
     unsigned char f_clipped[GC_FIELD_N];/* 1: the stiffness limit acts at the node */

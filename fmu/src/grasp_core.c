@@ -229,6 +229,21 @@ int gc_check_params(const gc_params_t *p, const gc_material_t *materials, int n_
         return -6;
     }
 #endif
+    if (p->passivity_observer != 0 && p->passivity_observer != 1) {
+        *message = "passivity_observer must be 0 or 1"; return -7;
+    }
+    if (!(isfinite(p->observer_stiffness_factor) && p->observer_stiffness_factor >= 1.0)) {
+        *message = "observer_stiffness_factor must be finite and >= 1"; return -7;
+    }
+    if (!(isfinite(p->observer_max_damping) && p->observer_max_damping > 0.0)) {
+        *message = "observer_max_damping must be finite and > 0"; return -7;
+    }
+    if (p->observer_delay < 0 || p->observer_delay > GC_OBS_DELAY_MAX) {
+        *message = "observer_delay must be 0 .. 4 samples"; return -7;
+    }
+    if (p->passivity_observer && p->rendering != GC_RENDER_CLIPPED) {
+        *message = "passivity_observer needs rendering 1 (clipped)"; return -7;
+    }
     if (!(isfinite(p->encoder_counts) && p->encoder_counts >= 0.0)) {
         *message = "encoder_counts must be >= 0"; return -3;
     }
@@ -273,6 +288,15 @@ void gc_init(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c) {
     s->f_th_lo = c->theta_lo;
     s->f_dth = 0.0;
     s->f_kg = 0.0;
+    s->po_w = 0.0;
+    s->po_theta = 0.0;
+    s->po_has = 0;
+    s->po_fs_prev = 0.0;
+    for (i = 0; i <= GC_OBS_DELAY_MAX; ++i) {
+        s->po_fh[i] = 0.0;
+        s->po_pc[i] = 0.0;
+    }
+    s->po_alpha = 0.0;
 }
 
 /* ---------------------------------------------------------------- the step */
@@ -334,16 +358,17 @@ static void field_node(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
 void gc_build_field(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
                     const gc_material_t *m) {
 #if GC_FIELD_N > 0
-    double sum_g = 0.0, lim, fis, a, sp, fir, next = 0.0;
+    double sum_g = 0.0, lim, fis, a, sp, fir, next = 0.0, klim = p->stiffness_limit;
     int i, j;
     if (p->rendering != GC_RENDER_CLIPPED) return;
+    if (p->passivity_observer) klim = p->stiffness_limit * p->observer_stiffness_factor;
     if (s->b_mat != m || !(s->b_t == p->thickness)) blend_prepare(s, m, p->thickness);
     /* prony_factor = 1.0 + sum(prony_g): Python's sum, left to right from 0 (the padded
      * g = 0 terms add exactly 0) */
     for (i = 0; i < GC_PRONY_MAX; ++i) sum_g += p->prony_g[i];
     s->f_th_lo = c->theta_lo;
     s->f_dth = (c->theta_hi - c->theta_lo) / (double)(GC_FIELD_N - 1);
-    s->f_kg = p->stiffness_limit / (c->L3 * 1e-3) / (1.0 + sum_g);
+    s->f_kg = klim / (c->L3 * 1e-3) / (1.0 + sum_g);
     lim = s->f_kg * s->f_dth;
     for (j = GC_FIELD_N - 1; j >= 0; --j) {
         field_node(s, p, c, j, &fis, &a, &sp);
@@ -380,12 +405,50 @@ static double field_force(const gc_state_t *s, double th, int *active) {
 }
 #endif
 
+/* Passivity observer / controller (ImpedanceController._observe): the damping to add, N m s/rad.
+ * th encoder angle (rad), v velocity of the damping (rad/s), fstat static handle force (N). */
+static double observe(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c, double th,
+                      double v, double fstat, double *pc_new) {
+    int d = p->observer_delay, i;
+    double fsm, pending = 0.0, we, alpha = 0.0;
+    if (!s->po_has) {
+        s->po_theta = th;
+        s->po_fs_prev = fstat;
+        s->po_has = 1;
+    }
+    fsm = 0.5 * (s->po_fs_prev + fstat);
+    s->po_w = s->po_w + (s->po_fh[d] - fsm) * (c->L3 * 1e-3) * (th - s->po_theta);
+    s->po_theta = th;
+    s->po_fs_prev = fstat;
+    for (i = 0; i < d; ++i) pending += s->po_pc[i];
+    we = s->po_w - pending;
+    *pc_new = 0.0;
+    if (we > 0.0 && v != 0.0) {
+        double amax = p->observer_max_damping, tv = p->sample_time * (v * v);
+        alpha = we >= amax * tv ? amax : we / tv;
+        *pc_new = alpha * tv;
+    }
+    s->po_alpha = alpha;
+    return alpha;
+}
+
+/* remember the step's saturated handle force fh (N) and planned dissipation (J) */
+static void observer_push(gc_state_t *s, const gc_params_t *p, double fh, double pc_new) {
+    int i;
+    for (i = p->observer_delay; i > 0; --i) {
+        s->po_fh[i] = s->po_fh[i - 1];
+        s->po_pc[i] = s->po_pc[i - 1];
+    }
+    s->po_fh[0] = fh;
+    s->po_pc[0] = pc_new;
+}
+
 /* the step; use_ext: damp the external velocity ext_v (rad/s) instead of the filtered estimate */
 static void step_impl(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
                       const gc_material_t *m, double theta, int use_ext, double ext_v,
                       gc_output_t *o) {
     double th = theta, v_raw, th_deg, thc, thc_deg, g, g1, u, du, fs, f_g, k_g, kc, gp, fg, hi;
-    double fgr, fi, fi_spring, fi_fric = 0.0, v_damp, r_m, torque, lim;
+    double fgr, fi, fi_spring, fi_fric = 0.0, v_damp, r_m, torque, lim, fstat, pc_new = 0.0;
     int clamped = 0, contact, active = 0, i;
 
     if (isnan(th)) {
@@ -475,6 +538,7 @@ static void step_impl(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
     fi_spring = -fs * du / c->L3;
     fi = (fgr * g1 - fs * du) / c->L3;
     if (!p->render_spring) fi -= fi_spring;
+    fstat = fi; /* static handle force: field or coupling, Prony terms, spring */
     v_damp = use_ext ? ext_v : s->v;
     if (p->friction_coulomb > 0.0 || p->friction_load > 0.0 || p->friction_viscous > 0.0) {
         double vf = -v_damp * c->L3, fit;
@@ -486,11 +550,14 @@ static void step_impl(gc_state_t *s, const gc_params_t *p, const gc_chain_t *c,
         fi += fi_fric;
     }
     fi -= p->damping * v_damp / (c->L3 * 1e-3);
+    if (p->passivity_observer)
+        fi -= observe(s, p, c, th, v_damp, fstat, &pc_new) * v_damp / (c->L3 * 1e-3);
     r_m = p->pulley_radius * 1e-3;
     torque = fi * r_m;
     lim = p->torque_limit;
     o->saturated = fabs(torque) > lim;
     if (o->saturated) torque = copysign(lim, torque);
+    if (p->passivity_observer) observer_push(s, p, torque / r_m, pc_new);
 
     o->torque = torque;
     o->force_handle = torque / r_m;

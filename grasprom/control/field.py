@@ -222,7 +222,9 @@ def jaw_stiffness_limit_N_per_mm(params: ControllerParams, theta_deg: np.ndarray
 
     Clipped rendering: the handle-stiffness limit mapped to the jaw through the chain,
     ``K_g L3 / g'(theta)^2`` (``K_g`` as in :func:`build_field`, N/rad at the grip; the term of
-    the chain's curvature, ``F a'``, is left out); coupling: the effective coupling stiffness
+    the chain's curvature, ``F a'``, is left out; with the passivity observer the limit is
+    ``field_stiffness_limit_Nm_per_rad``, the bound times the observer's factor); coupling: the
+    effective coupling stiffness
     ``k_c,eff`` (the rendered jaw stiffness ``k_c k_t / (k_c + k_t)`` stays below it).
 
     Parameters
@@ -240,6 +242,6 @@ def jaw_stiffness_limit_N_per_mm(params: ControllerParams, theta_deg: np.ndarray
         return np.full(th.shape, params.coupling_effective_N_per_mm)
     chain = params.chain_params
     L3 = chain.L3_mm
-    kg = params.stiffness_limit_Nm_per_rad / (L3 * 1e-3) / prony_factor(params.prony_g)
+    kg = params.field_stiffness_limit_Nm_per_rad / (L3 * 1e-3) / prony_factor(params.prony_g)
     g1 = np.asarray(kin.dgap_dtheta_mm_per_rad(th, chain), dtype=float)
     return kg * L3 / (g1 * g1)

@@ -60,6 +60,43 @@ default, and the step is then bit-identical to the one without them):
   term is a virtual damping ``b L3^2`` on the same filtered velocity: ``grasprom tune`` adds it to
   ``B`` in the passivity condition.
 
+Time-domain passivity observer / controller (``passivity_observer``, Hannaford & Ryu 2002,
+"Time-domain passivity control of haptic interfaces", IEEE T-RA 18(1); Ryu, Kwon & Hannaford
+2004), with ``rendering = "clipped"`` only; the field is then built with the limit
+``stiffness_limit_Nm_per_rad * observer_stiffness_factor``, beyond the fixed Colgate bound:
+
+* **Observer** (after the field, Prony terms and spring give the static handle force ``Fs_k``,
+  N): the energy the controller has put into the handle port beyond what the ideal continuous
+  rendering of ``Fs`` would have (J),
+  ``W_k = W_{k-1} + (Fh_{k-1-d} - (Fs_{k-1} + Fs_k) / 2) (L3 1e-3) (theta_k - theta_{k-1})``,
+  with ``theta`` the encoder angle (a NaN input holds the last angle and adds nothing),
+  ``Fh_j`` the saturated handle force of step ``j`` (``torque_j / r``; ``tau = Fh L3`` is the
+  torque at the handle pivot, ``torque L3 / r``) and ``d = observer_delay_samples``: the
+  torque computed at step ``j`` acts on the handle over ``[j + d, j + d + 1]`` (the device's
+  computation delay, :class:`~grasprom.control.DeviceParams` ``delay_samples``, 1), so the
+  interval ``[k-1, k]`` was driven by step ``k-1-d``.  ``W = 0`` and no history at the first
+  step.  Two choices differ from the textbook ``W_k = W_{k-1} + tau_{k-1} dtheta``, both
+  measured in ``tests/control/test_observer.py`` (1 kHz, field 5x the Colgate bound):
+  (a) the *delay*: with one sample of delay the torque of step ``k-1`` is not the one that
+  drove the interval, the observer then sees about a third of the energy the delayed spring
+  generates, and the loop keeps its limit cycle (0.74 J generated, as without the observer);
+  (b) the *reference energy* ``(Fs_{k-1} + Fs_k) / 2 dtheta`` (trapezoid along the sampled path;
+  Ryu, Preusche, Hannaford & Hirzinger 2005, "Time domain passivity control with reference
+  energy following", IEEE T-RO 21(4)): without it the energy stored in the squeezed wall is a
+  passivity credit the oscillation feeds on before the controller acts (0.55 J generated).
+* **Controller**: the energy to dissipate is ``W_k`` minus what the controller has already
+  planned and not yet seen measured (``sum alpha_j v_j^2 T`` of the last ``d`` steps, whose
+  torques have not acted yet); if it is ``> 0`` and the velocity of the damping ``v``
+  (filtered estimate or ``theta_dot``) is non-zero, ``alpha = min(W / (T v^2), alpha_max)``
+  (N m s/rad, ``alpha_max = observer_max_damping_Nms_per_rad``; evaluated as ``alpha_max`` if
+  ``W >= alpha_max T v^2``, else ``W / (T v^2)``, which never divides by an underflowed
+  ``v^2 = 0``) adds ``-alpha v / (L3 1e-3)`` to the handle force, after the field, Prony terms,
+  spring, friction and the virtual damping ``B``, before the saturation (step 6); its planned
+  dissipation ``alpha v^2 T`` is remembered for ``d`` steps.  It is not subtracted from ``W``
+  itself: the next observer updates measure it (its torque is part of ``Fh``), and counting it
+  twice would give the observer a credit it never had.  What ``alpha_max`` leaves undissipated
+  stays in ``W`` for the next steps.  Not rendered by the Arduino fixed-point export (refused).
+
 Measurement effects of the augmented model (force-sensor offset/gain, latency) are not rendered:
 ``grasprom simulate --augmented`` applies them to an extra output column only.
 
@@ -204,6 +241,7 @@ class ImpedanceController:
         self._pa = [math.exp(-params.sample_time_s / tau) for tau in params.prony_tau_s]
         self._np = len(params.prony_g)
         self._fric = params.friction_rendered
+        self._d = int(params.observer_delay_samples)
         self._field = self._build_field() if params.rendering == "clipped" else None
         self.reset()
 
@@ -213,7 +251,7 @@ class ImpedanceController:
         return build_field(
             lambda g: self._tissue(g)[0],
             self._chain,
-            p.stiffness_limit_Nm_per_rad,
+            p.field_stiffness_limit_Nm_per_rad,
             render_spring=p.render_spring,
             compliance_mm_per_N=p.jaw_compliance_mm_per_N,
             prony_factor=prony_factor(p.prony_g),
@@ -238,6 +276,13 @@ class ImpedanceController:
         self._sdir = 0.0  # friction direction: +1 closing, -1 opening, 0 not moved yet
         self._h = [0.0] * self._np  # Prony states (N)
         self._fg_prev = 0.0  # coupled jaw force of the previous step (N)
+        self._w = 0.0  # observed energy into the handle (J)
+        self._w_theta = None  # encoder angle of the previous step (rad), set on the first step
+        self._fs_prev = 0.0  # static handle force of the previous step (N)
+        self._fh_hist = [0.0] * (self._d + 1)  # handle forces of steps k-1 .. k-1-d (N)
+        self._pc_hist = [0.0] * (self._d + 1)  # planned dissipation of steps k-1 .. k-1-d (J)
+        self._pc_new = 0.0
+        self._alpha = 0.0  # observer damping of the last step (N m s/rad)
 
     def _tissue(self, g: float) -> tuple[float, float]:
         """Surrogate force (N) and stiffness (N/mm) at the gap ``g`` (mm), times the scale."""
@@ -293,17 +338,22 @@ class ImpedanceController:
         v_damp = self._v
         if theta_dot is not None and math.isfinite(theta_dot):
             v_damp = float(theta_dot)
+        fs = fi  # static handle force (N): field or coupling, Prony terms, spring
         f_fric = 0.0
         if self._fric:
             f_fric = self._friction(v_damp, fgr, thc_deg)
             fi += f_fric
         fi -= p.damping_Nms_per_rad * v_damp / (self._L3 * 1e-3)
+        if p.passivity_observer:
+            fi -= self._observe(th, v_damp, fs) * v_damp / (self._L3 * 1e-3)
         r_m = p.pulley_radius_mm * 1e-3
         torque = fi * r_m
         lim = p.torque_limit_Nm
         saturated = abs(torque) > lim
         if saturated:
             torque = math.copysign(lim, torque)
+        if p.passivity_observer:
+            self._observer_push(torque / r_m)
         warn = f_g >= p.force_warning_N or f_g / self._area >= p.pressure_warning_MPa
         return StepOutput(
             torque_Nm=torque,
@@ -323,6 +373,53 @@ class ImpedanceController:
             theta_chain_deg=thc_deg,
             force_handle_friction_N=f_fric,
         )
+
+    @property
+    def observer_energy_J(self) -> float:
+        """Energy the controller has put into the handle, ``W`` (J; 0 without the observer)."""
+        return self._w
+
+    @property
+    def observer_damping_Nms_per_rad(self) -> float:
+        """Damping ``alpha`` the observer added in the last step (N m s/rad at the pivot)."""
+        return self._alpha
+
+    def _observe(self, th: float, v_damp: float, fs: float) -> float:
+        """Passivity observer and controller (module docstring): the added damping (N m s/rad).
+
+        ``th`` is the encoder angle (rad), ``v_damp`` the velocity of the damping (rad/s) and
+        ``fs`` the static handle force of this step (N); updates the observed energy ``W`` (J).
+        """
+        d = self._d
+        if self._w_theta is None:
+            self._w_theta = th
+            self._fs_prev = fs
+        fs_mean = 0.5 * (self._fs_prev + fs)
+        self._w = self._w + (self._fh_hist[d] - fs_mean) * (self._L3 * 1e-3) * (th - self._w_theta)
+        self._w_theta = th
+        self._fs_prev = fs
+        pending = 0.0
+        for i in range(d):
+            pending += self._pc_hist[i]
+        we = self._w - pending
+        alpha = 0.0
+        self._pc_new = 0.0
+        if we > 0.0 and v_damp != 0.0:
+            amax = self.params.observer_max_damping_Nms_per_rad
+            tv = self.params.sample_time_s * (v_damp * v_damp)
+            alpha = amax if we >= amax * tv else we / tv
+            self._pc_new = alpha * tv
+        self._alpha = alpha
+        return alpha
+
+    def _observer_push(self, fh: float) -> None:
+        """Remember this step's (saturated) handle force (N) and planned dissipation (J)."""
+        h, e = self._fh_hist, self._pc_hist
+        for i in range(self._d, 0, -1):
+            h[i] = h[i - 1]
+            e[i] = e[i - 1]
+        h[0] = fh
+        e[0] = self._pc_new
 
     def _encoder(self, th: float) -> tuple[float, bool]:
         """Encoder angle (rad, quantised, in range) and whether the input was clamped.

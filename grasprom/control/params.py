@@ -22,6 +22,7 @@ from grasprom.fe import MATERIAL_NAMES
 __all__ = [
     "CONTROLLER_FILE_VERSION",
     "MAX_PRONY_TERMS",
+    "OBSERVER_DELAY_MAX",
     "RENDERINGS",
     "ControllerParams",
     "load_params",
@@ -29,6 +30,9 @@ __all__ = [
     "params_to_dict",
     "save_params",
 ]
+
+OBSERVER_DELAY_MAX = 4
+"""Largest ``observer_delay_samples`` (the C core keeps that many torques)."""
 
 MAX_PRONY_TERMS = 4
 """Largest number of Prony terms the controller renders (the C core has room for 4)."""
@@ -50,6 +54,7 @@ _POSITIVE_FIELDS = (
     "tissue_scale",
     "friction_velocity_threshold_mm_per_s",
     "stiffness_limit_Nm_per_rad",
+    "observer_max_damping_Nms_per_rad",
 )
 """Numeric fields that must be finite and > 0."""
 
@@ -148,6 +153,31 @@ class ControllerParams:
         ``K_lim`` of the clipped rendering: the largest handle stiffness rendered (N m/rad at
         the pivot, > 0).  Default 6.2: the passive bound of the default device (b = 0.01 N m s/rad
         with a safety factor of 1.25, one sample of delay, the default ``B`` and cutoff) at 1 kHz.
+    passivity_observer : bool
+        Time-domain passivity observer / controller (Hannaford & Ryu 2002; Ryu, Kwon &
+        Hannaford 2004) on the handle port: the energy the controller has put into the handle
+        is observed and, while it is positive, dissipated by an added damping
+        (:mod:`grasprom.control.impedance`).  Needs ``rendering = "clipped"`` (refused with the
+        coupling, whose proxy already bounds the rendered stiffness by ``k_c``).
+    observer_stiffness_factor : float
+        With the observer on, the clipped field is built with the limit
+        ``stiffness_limit_Nm_per_rad * factor`` (1, >= 1; default 5: walls five times stiffer
+        than the fixed Colgate bound, the observer keeps the loop passive).
+    observer_max_damping_Nms_per_rad : float
+        Cap ``alpha_max`` of the observer's added damping (N m s/rad at the handle pivot, > 0).
+        Default 0.5: at 1 kHz a damping ``alpha`` on the one-sample-delayed, filtered velocity
+        of the default handle (J = 2e-3 kg m^2) stays well-behaved while ``alpha T / J`` is
+        well below 1 (0.25 here; the delayed damper itself goes unstable near ``J / T`` = 2);
+        it is 50 times the device's physical damping b, and at a closing speed of 0.5 rad/s
+        it asks 0.25 N m, a quarter of the default torque limit.  Measured
+        (``tests/control/test_observer.py``): 0.1 to 1 all settle the 5x wall, 0.5 settles the
+        hold below one encoder count at all three closing speeds.
+    observer_delay_samples : int
+        Samples between a step's output and the torque acting on the handle, beyond the
+        zero-order hold (0 to :data:`OBSERVER_DELAY_MAX`; default 1, the device's documented
+        ``delay_samples``): the observer charges each interval with the torque that drove it.
+        Set it to the real device's delay (0 for an FMU importer that applies the torque over
+        the next communication step).
     """
 
     thickness_mm: float = 1.4
@@ -177,10 +207,15 @@ class ControllerParams:
     prony_tau_s: tuple[float, ...] = ()
     rendering: str = "coupling"
     stiffness_limit_Nm_per_rad: float = 6.2
+    passivity_observer: bool = False
+    observer_stiffness_factor: float = 5.0
+    observer_max_damping_Nms_per_rad: float = 0.5
+    observer_delay_samples: int = 1
 
     def __post_init__(self) -> None:
         _check_material(self)
         _check_rendering(self)
+        _check_observer(self)
         _check_scalars(self)
         _normalise_prony(self)
         _check_prony(self)
@@ -201,6 +236,16 @@ class ControllerParams:
         """Coupling in series with the jaw compliance, ``1 / (1/k_c + C)`` (N/mm; k_c at C = 0)."""
         kc, c = self.coupling_stiffness_N_per_mm, self.jaw_compliance_mm_per_N
         return kc if c == 0 else 1.0 / (1.0 / kc + c)
+
+    @property
+    def field_stiffness_limit_Nm_per_rad(self) -> float:
+        """Stiffness limit the clipped field is built with (N m/rad at the pivot).
+
+        ``stiffness_limit_Nm_per_rad``, times ``observer_stiffness_factor`` with the passivity
+        observer on.
+        """
+        k = self.stiffness_limit_Nm_per_rad
+        return k * self.observer_stiffness_factor if self.passivity_observer else k
 
     @property
     def friction_rendered(self) -> bool:
@@ -224,6 +269,32 @@ def _check_rendering(p: ControllerParams) -> None:
         raise ValueError(
             f"controller parameter rendering {p.rendering!r} unknown; "
             f"valid: {', '.join(RENDERINGS)}"
+        )
+
+
+def _check_observer(p: ControllerParams) -> None:
+    """Observer flag a bool, factor finite and >= 1, and the observer only with ``clipped``."""
+    if not isinstance(p.passivity_observer, bool):
+        raise ValueError(
+            f"controller parameter passivity_observer must be true or false, got "
+            f"{p.passivity_observer!r}"
+        )
+    f = p.observer_stiffness_factor
+    if isinstance(f, bool) or not (isinstance(f, int | float) and math.isfinite(f) and f >= 1):
+        raise ValueError(
+            f"controller parameter observer_stiffness_factor must be finite and >= 1, got {f!r}"
+        )
+    d = p.observer_delay_samples
+    if isinstance(d, bool) or not isinstance(d, int) or not 0 <= d <= OBSERVER_DELAY_MAX:
+        raise ValueError(
+            f"controller parameter observer_delay_samples must be an integer in "
+            f"[0, {OBSERVER_DELAY_MAX}], got {d!r}"
+        )
+    if p.passivity_observer and p.rendering != "clipped":
+        raise ValueError(
+            f"controller parameter passivity_observer=True needs rendering='clipped' (got "
+            f"{p.rendering!r}): the observer renders the clipped field beyond the Colgate bound; "
+            "the virtual coupling has no field to stiffen"
         )
 
 

@@ -164,6 +164,8 @@ class CCore:
         pd = ctypes.POINTER(ctypes.c_double)
         self._lib.gcs_field.argtypes = [pd, pd, pd, pd, ctypes.POINTER(ctypes.c_ubyte)]
         self._lib.gcs_field.restype = ctypes.c_int
+        self._lib.gcs_observer.argtypes = [pd, pd]
+        self._lib.gcs_observer.restype = None
         self._out = GcOutput()
         self.reset()
 
@@ -194,6 +196,14 @@ class CCore:
         return CoreField(
             lo.value, dth.value, kg.value, tuple(force[:n]), tuple(bool(c) for c in clipped[:n])
         )
+
+    def observer(self) -> tuple[float, float]:
+        """The passivity observer's energy ``W`` (J) and the damping of the last step
+        (N m s/rad), as :attr:`~grasprom.control.ImpedanceController.observer_energy_J` and
+        :attr:`~grasprom.control.ImpedanceController.observer_damping_Nms_per_rad`."""
+        w, alpha = ctypes.c_double(), ctypes.c_double()
+        self._lib.gcs_observer(ctypes.byref(w), ctypes.byref(alpha))
+        return w.value, alpha.value
 
     def step(self, theta_rad: float, theta_dot: float | None = None) -> StepOutput:
         """One step (``gc_step``, or ``gc_step_ext`` with a finite measured velocity)."""

@@ -630,6 +630,23 @@ F(g). The Prony terms, the chain, friction, damping and saturation follow as abo
 """
 
 
+def _doc_observer() -> str:
+    """The documentation's section on the passivity observer (``passivity_observer``)."""
+    return """<h2>Passivity observer (<code>passivity_observer</code>)</h2>
+<p>With the clipped rendering only (the FMU refuses it with the coupling at
+ExitInitializationMode): the field is built with <code>stiffness_limit</code> &times;
+<code>observer_stiffness_factor</code>, and a time-domain passivity observer / controller
+(Hannaford &amp; Ryu 2002; reference energy: Ryu et al. 2005) keeps the handle port passive.
+Each step, W &larr; W + (Fh<sub>k&minus;1&minus;d</sub> &minus; (Fs<sub>k&minus;1</sub> +
+Fs<sub>k</sub>)/2) L<sub>3</sub> (&theta;<sub>k</sub> &minus; &theta;<sub>k&minus;1</sub>) (J):
+Fh the saturated handle force of the step whose torque drove the interval (d =
+<code>observer_delay</code>), Fs the static handle force (field, Prony terms, spring). If W minus
+the dissipation planned in the last d steps is positive and the velocity v of the damping is not
+0, the damping &alpha; = min(W / (T v<sup>2</sup>), <code>observer_max_damping</code>) adds
+&minus;&alpha; v / L<sub>3</sub> to the handle force before the saturation.</p>
+"""
+
+
 def documentation_html(
     vars_: list[Variable], fmi_version: int, token: str, params: ControllerParams
 ) -> str:
@@ -655,6 +672,7 @@ communication point). Before the first step the outputs hold their start values.
 
 {_DOC_EQUATIONS}
 {_doc_clipped()}
+{_doc_observer()}
 <h2>Variables (SI units)</h2>
 <table><tr><th>name</th><th>vr</th><th>type</th><th>causality</th><th>variability</th>
 <th>unit</th><th>display</th><th>start</th><th>min</th><th>max</th><th>description</th></tr>

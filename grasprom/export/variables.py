@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 from grasprom.chain import kinematics as kin
 from grasprom.control import MAX_PRONY_TERMS, ControllerParams
-from grasprom.control.params import RENDERINGS
+from grasprom.control.params import OBSERVER_DELAY_MAX, RENDERINGS
 from grasprom.fe import MATERIAL_NAMES
 from grasprom.surrogate import Surrogate
 
@@ -140,6 +140,10 @@ PARAMS_FIELDS: tuple[CField, ...] = (
     CField("prony_tau", length=PRONY_MAX),
     CField("rendering", "int"),
     CField("stiffness_limit"),
+    CField("passivity_observer", "int"),
+    CField("observer_stiffness_factor"),
+    CField("observer_max_damping"),
+    CField("observer_delay", "int"),
 )
 """Layout of ``gc_params_t`` (``grasp_core.h``), in C order."""
 
@@ -374,6 +378,23 @@ SPECS: tuple[VarSpec, ...] = (
     _param("stiffness_limit", "stiffness_limit_Nm_per_rad", "stiffness_limit", "N.m/rad", None,
            None, 1e-6, 1e6, "largest handle stiffness of the clipped rendering, at the handle "
            "pivot (the field's slope bound K_lim; rendering 1 only)"),
+    # appended after rendering/stiffness_limit: the time-domain passivity observer (issue 13)
+    VarSpec("passivity_observer", "Boolean", "parameter", "fixed",
+            "time-domain passivity observer / controller on the handle port (needs rendering "
+            "1; the field is then built with stiffness_limit x observer_stiffness_factor)",
+            params_field="passivity_observer", core_field="passivity_observer"),
+    _param("observer_stiffness_factor", "observer_stiffness_factor",
+           "observer_stiffness_factor", None, None, None, 1.0, 1e3,
+           "factor on stiffness_limit of the clipped field with the passivity observer on"),
+    _param("observer_max_damping", "observer_max_damping_Nms_per_rad", "observer_max_damping",
+           "N.m.s/rad", None, None, 1e-9, 100.0,
+           "cap of the damping the passivity controller adds, at the handle pivot"),
+    VarSpec("observer_delay", "Integer", "parameter", "fixed",
+            "samples between a step's output and its torque acting on the handle (the "
+            "observer charges each interval with the torque that drove it; 0 for an importer "
+            "that applies the torque over the next communication step)",
+            params_field="observer_delay_samples", core_field="observer_delay", min=0,
+            max=OBSERVER_DELAY_MAX),
 )  # fmt: skip
 """The FMU's variables in value-reference order (vr = position)."""
 

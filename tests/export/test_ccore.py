@@ -293,3 +293,103 @@ def test_c_prony_factor_sums_left_to_right(core):
     assert acc == 0.6000000000000001
     kg = p.stiffness_limit_Nm_per_rad / (p.chain.L3_mm * 1e-3) / (1.0 + acc)
     assert core.field().stiffness_limit_N_per_rad == kg
+
+
+# ------------------------------------------------------------------ passivity observer (issue 13)
+OBSERVER_CASES = [
+    ("le", 2.0, {}),  # the energy test's wall, 5x the bound
+    ("le", 1.95, {"torque_limit_Nm": 0.3, "observer_delay_samples": 0}),  # saturates
+    ("mr", 1.4, {**AUGMENTED, "observer_delay_samples": 2,
+                 "observer_max_damping_Nms_per_rad": 0.05}),
+    ("nh", 1.15, {"observer_stiffness_factor": 8.0, "observer_delay_samples": 4,
+                  "encoder_counts_per_rev": 0, "render_spring": False}),
+]  # fmt: skip
+
+
+def _observer(case) -> ControllerParams:
+    material, t, extra = case
+    return ControllerParams(thickness_mm=t, material=material, rendering="clipped",
+                            passivity_observer=True, **extra)  # fmt: skip
+
+
+def _observer_angles(surrogate, p) -> dict[str, np.ndarray]:
+    """The parity trajectories (deg) and the closed loop of the energy test (its handle
+    angles: the observer acts there), converted to deg."""
+    from tests.control.test_observer import simulate_energy
+
+    out = dict(_trajectories())
+    out["loop"] = np.degrees(simulate_energy(p, surrogate, 0.15).theta_rad)
+    return out
+
+
+@pytest.mark.parametrize("case", OBSERVER_CASES, ids=[f"{m}-{t}" for m, t, _ in OBSERVER_CASES])
+def test_c_core_observer_is_bit_identical_to_python(surrogate, core, case):
+    """Every output, the observed energy and the added damping, step for step (``==``)."""
+    p = _observer(case)
+    acting = 0
+    for name, traj in _observer_angles(surrogate, p).items():
+        core.reset(p)
+        ref = ImpedanceController(p, surrogate)
+        for k, th_deg in enumerate(traj):
+            a = core.step(math.radians(th_deg))
+            b = ref.step(math.radians(th_deg))
+            _assert_identical(a, b, (name, k))
+            w = (ref.observer_energy_J, ref.observer_damping_Nms_per_rad)
+            assert core.observer() == w, (name, k)
+            acting += w[1] > 0.0
+    assert acting > 0  # the controller damps somewhere
+    got, want = core.field(), ImpedanceController(p, surrogate).field
+    assert got.stiffness_limit_N_per_rad == want.stiffness_limit_N_per_rad
+    assert got.force_jaw_N == want.force_jaw_N  # the field at K_lim x factor, node for node
+
+
+def test_c_core_observer_measured_velocity_is_bit_identical(surrogate, core):
+    """gc_step_ext with the observer: the damping acts on theta_dot (NaN: the estimate)."""
+    p = _observer(OBSERVER_CASES[0])
+    core.reset(p)
+    ref = ImpedanceController(p, surrogate)
+    th = _observer_angles(surrogate, p)["loop"]
+    w = np.gradient(np.radians(th), 1e-3)
+    w[::97] = np.nan
+    w[5::89] = 0.0
+    for k, (a_deg, v) in enumerate(zip(th, w)):
+        _assert_identical(core.step(math.radians(a_deg), v), ref.step(math.radians(a_deg), v), (k,))
+        assert core.observer() == (ref.observer_energy_J, ref.observer_damping_Nms_per_rad)
+
+
+def test_observer_off_leaves_the_clipped_output_unchanged(surrogate, core):
+    """The observer's parameters do nothing while it is off (C and Python)."""
+    base = _clipped(CLIPPED_CASES[0])
+    other = dataclasses.replace(base, observer_stiffness_factor=7.0, observer_delay_samples=3,
+                                observer_max_damping_Nms_per_rad=9.0)  # fmt: skip
+    th = _trajectories()["fast"]
+    runs = []
+    for p in (base, other):
+        core.reset(p)
+        ref = ImpedanceController(p, surrogate)
+        runs.append([(core.step(math.radians(a)), ref.step(math.radians(a))) for a in th])
+    for (a0, b0), (a1, b1) in zip(*runs):
+        assert tuple(a0) == tuple(b0) == tuple(a1) == tuple(b1)
+
+
+def test_c_core_checks_the_observer_parameters(core):
+    p = ControllerParams(rendering="clipped", passivity_observer=True)
+    for field, value, match in (
+        ("passivity_observer", 2, "passivity_observer must be 0 or 1"),
+        ("observer_stiffness_factor", 0.5, "observer_stiffness_factor must be finite and >= 1"),
+        ("observer_stiffness_factor", float("nan"), "observer_stiffness_factor"),
+        ("observer_max_damping", 0.0, "observer_max_damping must be finite and > 0"),
+        ("observer_max_damping", float("inf"), "observer_max_damping"),
+        ("observer_delay", 5, "observer_delay must be 0 .. 4"),
+        ("observer_delay", -1, "observer_delay"),
+        ("rendering", 0, "passivity_observer needs rendering 1 .clipped."),
+    ):
+        raw = c_params(p)
+        setattr(raw, field, value)
+        with pytest.raises(ValueError, match=f"rejected.*{match}"):
+            core.init_raw(raw)
+    raw = c_params(p)
+    assert (raw.passivity_observer, raw.observer_delay) == (1, 1)
+    assert raw.observer_stiffness_factor == 5.0
+    assert raw.observer_max_damping == p.observer_max_damping_Nms_per_rad
+    assert c_params(ControllerParams()).passivity_observer == 0

@@ -274,6 +274,96 @@ def test_fmpy_clipped_matches_python_reference(fmus, surrogate, case, record_pro
     print(f"fmpy (clipped) max relative error {worst:.3g}")
 
 
+# the time-domain passivity observer (issue 13): the same FMUs with passivity_observer = 1
+OBSERVER_CASES = [
+    ("le", 2.0, {"rendering": "clipped", "passivity_observer": True}),
+    ("le", 1.95, {"rendering": "clipped", "passivity_observer": True, "torque_limit_Nm": 0.3,
+                  "observer_delay_samples": 0, "observer_max_damping_Nms_per_rad": 0.05}),
+    ("nh", 1.15, {**CASES[5][2], "rendering": "clipped", "passivity_observer": True,
+                  "observer_stiffness_factor": 8.0, "observer_delay_samples": 3}),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("case", OBSERVER_CASES, ids=[f"{m}-{t}" for m, t, _ in OBSERVER_CASES])
+def test_fmpy_observer_matches_python_reference(fmus, surrogate, case, record_property):
+    """FMI 2 and 3 with the observer on, within REL of the reference; the observer acts on
+    these trajectories (not a trivial pass)."""
+    params = _params(case)
+    acting = 0
+    for theta_deg in _trajectories().values():
+        ref = ImpedanceController(params, surrogate)
+        for a in theta_deg:
+            ref.step(math.radians(a))
+            acting += ref.observer_damping_Nms_per_rad > 0.0
+    assert acting > 0
+    worst = _fmpy_worst(fmus, surrogate, params)
+    record_property("fmpy_observer_max_rel_err", worst)
+    print(f"fmpy (observer) max relative error {worst:.3g}, {acting} damped steps")
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_export_with_the_observer(surrogate, tmp_path, version):
+    """Parameters with the observer export (FMI 2 and 3): start values, documentation, and the
+    FMU run with its own start values matches the reference."""
+    _require(shutil.which("gcc") is not None, "gcc")
+    params = ControllerParams(material="le", thickness_mm=2.0, rendering="clipped",
+                              passivity_observer=True, observer_delay_samples=2)  # fmt: skip
+    path = export_fmu(tmp_path / "observer.fmu", params, surrogate, fmi_version=version)
+    assert validate_fmu(str(path)) == []
+    v = {x.name: x for x in read_model_description(str(path)).modelVariables}
+    assert v["passivity_observer"].start in ("true", "1", True, 1)
+    assert int(v["observer_delay"].start) == 2
+    assert float(v["observer_max_damping"].start) == params.observer_max_damping_Nms_per_rad
+    html = Path(extract(str(path), str(tmp_path / "x"))) / "documentation" / "index.html"
+    assert "Passivity observer" in html.read_text()
+    theta_deg = _trajectories()["fast"]
+    n, T = theta_deg.size, params.sample_time_s
+    res = simulate_fmu(str(path), start_time=0.0, stop_time=n * T, output_interval=T,
+                       input=_input_signal(params, theta_deg),
+                       output=REAL_OUT + BOOL_OUT)  # fmt: skip
+    got = {k: res[k][1:] for k in REAL_OUT + BOOL_OUT}
+    err = _max_rel_err(got, _reference(params, surrogate, theta_deg))
+    print(f"observer FMI {version} export max relative error {err:.3g}")
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_observer_parameters_are_checked(slaves, surrogate, version):
+    """The observer with the coupling is refused at ExitInitializationMode; with the clipped
+    field it runs as the reference."""
+    s = slaves[version]
+    assert s.instantiate()
+    try:
+        assert s.set("passivity_observer", True) == 0
+        assert s.set("observer_delay", 5) == 3
+        assert s.enter() == 0
+        assert s.exit() == 3 and "passivity_observer needs rendering 1" in s.last()
+    finally:
+        s.free()
+    assert s.instantiate()
+    try:
+        for name, value in (
+            ("rendering", 1),
+            ("passivity_observer", True),
+            ("observer_stiffness_factor", 5.0),
+            ("observer_delay", 1),
+        ):
+            assert s.set(name, value) == 0, name  # fmt: skip
+        assert s.enter() == 0 and s.exit() == 0
+        ref = ImpedanceController(
+            ControllerParams(rendering="clipped", passivity_observer=True), surrogate
+        )
+        t = 0.0
+        for theta in (0.3, 0.1, 0.0, 0.05, 0.0, 0.02, 0.0):
+            assert s.set("theta", theta) == 0
+            assert s.step(t, 1e-3) == 0
+            t += 1e-3
+            b = ref.step(theta)
+            assert s.get("torque") == (0, pytest.approx(b.torque_Nm, rel=REL, abs=1e-12))
+        assert s.terminate() == 0
+    finally:
+        s.free()
+
+
 @pytest.mark.parametrize("version", [2, 3])
 def test_c_driver_runs_the_binary_without_python(fmus, driver, surrogate, version):
     fmu = fmus[version]

@@ -12,7 +12,7 @@ import pytest
 
 from grasprom.control import MAX_PRONY_TERMS, ControllerParams
 from grasprom.control.field import COMPLIANCE_BISECTIONS, FIELD_POINTS
-from grasprom.control.params import RENDERINGS
+from grasprom.control.params import OBSERVER_DELAY_MAX, RENDERINGS
 from grasprom.export import OUTPUT_COLUMNS
 from grasprom.export.codegen import (
     GcOutput,
@@ -172,7 +172,7 @@ def test_rendering_parameters_are_appended_and_mapped(surrogate):
         vars_ = {v.name: v for v in variables(p, surrogate)}
         names = list(vars_)
         assert names[: len(VARIABLES_BEFORE_RENDERING)] == VARIABLES_BEFORE_RENDERING
-        assert names[len(VARIABLES_BEFORE_RENDERING) :] == ["rendering", "stiffness_limit"]
+        assert names[len(VARIABLES_BEFORE_RENDERING) :][:2] == ["rendering", "stiffness_limit"]
         r, k = vars_["rendering"], vars_["stiffness_limit"]
         assert (r.type, r.causality, r.variability) == ("Integer", "parameter", "fixed")
         assert (r.min, r.max, r.start) == (0, 1, RENDERING_CODES[p.rendering])
@@ -193,6 +193,53 @@ def test_rendering_parameters_are_appended_and_mapped(surrogate):
         cfg = config_header(list(vars_.values()), "{token}")
         assert "p->rendering = (int)v[GF_VR_rendering];" in cfg
         assert "p->stiffness_limit = v[GF_VR_stiffness_limit];" in cfg
-    assert [f.name for f in PARAMS_FIELDS[-2:]] == ["rendering", "stiffness_limit"]
-    assert [f.ctype for f in PARAMS_FIELDS[-2:]] == ["int", "double"]
+    assert [f.name for f in PARAMS_FIELDS[-6:-4]] == ["rendering", "stiffness_limit"]
+    assert [f.ctype for f in PARAMS_FIELDS[-6:-4]] == ["int", "double"]
     assert GcParams.rendering.size == ctypes.sizeof(ctypes.c_int)
+
+
+OBSERVER_VARIABLES = [
+    "passivity_observer",
+    "observer_stiffness_factor",
+    "observer_max_damping",
+    "observer_delay",
+]
+
+
+def test_observer_parameters_are_appended_and_mapped(surrogate):
+    """The passivity observer's parameters follow every existing variable (whose value
+    references are unchanged) and are generated into the XML, the config header and ctypes."""
+    p = ControllerParams(rendering="clipped", passivity_observer=True,
+                         observer_stiffness_factor=4.0, observer_max_damping_Nms_per_rad=0.3,
+                         observer_delay_samples=2)  # fmt: skip
+    vars_ = {v.name: v for v in variables(p, surrogate)}
+    names = list(vars_)
+    n0 = len(VARIABLES_BEFORE_RENDERING) + 2
+    assert names[:n0] == [*VARIABLES_BEFORE_RENDERING, "rendering", "stiffness_limit"]
+    assert names[n0:] == OBSERVER_VARIABLES
+    po, f, a, d = (vars_[n] for n in OBSERVER_VARIABLES)
+    assert (po.type, po.causality, po.start) == ("Boolean", "parameter", 1)
+    assert (f.type, f.unit, f.start, f.min) == ("Real", None, 4.0, 1.0)
+    assert (a.type, a.unit, a.start) == ("Real", "N.m.s/rad", 0.3) and a.min > 0
+    assert (d.type, d.start, d.min, d.max) == ("Integer", 2, 0, OBSERVER_DELAY_MAX)
+    off = {v.name: v for v in variables(ControllerParams(), surrogate)}
+    assert off["passivity_observer"].start == 0
+    for version in (2, 3):
+        root = ET.fromstring(model_description(list(vars_.values()), version, "{t}", p, "d"))
+        tag = "ScalarVariable" if version == 2 else "*"
+        xml = {e.get("name"): e for e in root.iter(tag) if e.get("valueReference")}
+        for i, n in enumerate(OBSERVER_VARIABLES):
+            assert int(xml[n].get("valueReference")) == n0 + i
+    cfg = config_header(list(vars_.values()), "{token}")
+    assert "p->passivity_observer = v[GF_VR_passivity_observer] != 0.0;" in cfg
+    assert "p->observer_stiffness_factor = v[GF_VR_observer_stiffness_factor];" in cfg
+    assert "p->observer_max_damping = v[GF_VR_observer_max_damping];" in cfg
+    assert "p->observer_delay = (int)v[GF_VR_observer_delay];" in cfg
+    assert [f.name for f in PARAMS_FIELDS[-4:]] == [
+        "passivity_observer", "observer_stiffness_factor", "observer_max_damping",
+        "observer_delay",
+    ]  # fmt: skip
+    assert [f.ctype for f in PARAMS_FIELDS[-4:]] == ["int", "double", "double", "int"]
+    header = c_file("grasp_core.h").read_text()
+    delay_max = re.search(r"#define GC_OBS_DELAY_MAX (\d+)", header)
+    assert int(delay_max.group(1)) == OBSERVER_DELAY_MAX

@@ -288,6 +288,9 @@ def export_arduino(
     -------
     ArduinoExport
     """
+    if params.passivity_observer:
+        msg = "the Arduino fixed-point build does not render the passivity observer"
+        raise ValueError(f"{msg}: export with passivity_observer=False (the FMU renders it)")
     tables = build_tables(surrogate, params, tol, fixed_point=fixed_point)
     out = Path(out_dir)
     sk = out / SKETCH_NAME
