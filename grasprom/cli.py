@@ -91,6 +91,7 @@ def _add_sweep_parser(sub) -> None:
         help=f"comma list of materials from {','.join(KNOWN_MATERIALS)}",
     )
     _add_case_geometry(s, d)
+    _add_model_options(s)
     g = s.add_mutually_exclusive_group()
     g.add_argument(
         "--workers",
@@ -155,6 +156,37 @@ def _add_case_geometry(s: argparse.ArgumentParser, d: dict) -> None:
         default=None,
         metavar="N",
         help=f"mesh divisions along the quarter circumference (default {d['n_circ']})",
+    )
+
+
+def _add_model_options(s: argparse.ArgumentParser) -> None:
+    """``--model`` and the 3D options of ``grasprom sweep`` (issue 18)."""
+    s.add_argument(
+        "--model",
+        choices=("2d", "3d"),
+        default="2d",
+        help="FE model: 2d (plane-strain ring, fast) or 3d (1/8 tube with finite jaws; default 2d)",
+    )
+    s.add_argument(
+        "--contact",
+        choices=("stick", "frictionless", "coulomb"),
+        default=None,
+        help="jaw contact: stick (no sliding, seed 003; 3d default) or frictionless (2d: the "
+        "only one); coulomb is not implemented yet",
+    )
+    s.add_argument("--friction", type=float, default=None, metavar="MU", help="Coulomb coefficient")
+    s.add_argument(
+        "--tube-length",
+        type=float,
+        default=None,
+        metavar="MM",
+        help="3d: length of the modelled tube in mm (default of grasprom.fe.model3d)",
+    )
+    s.add_argument(
+        "--ends",
+        choices=("seed", "free"),
+        default=None,
+        help="3d: free edges of the tube, seed (in-plane translations held) or free",
     )
 
 
@@ -350,8 +382,11 @@ def _error(cmd: str, msg: object) -> int:
 
 def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
     from grasprom.fe import CorruptCaseError, SweepInputError, build_grid, default_runner, run_sweep
+    from grasprom.fe.grid3d import Model3DOptions, check_options, to_3d
 
+    opts3d = Model3DOptions(args.contact, args.friction, args.tube_length, args.ends)
     try:
+        check_options(args.model, opts3d)
         specs = build_grid(
             args.thickness,
             args.material,
@@ -363,8 +398,14 @@ def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
             n_circ=args.n_circ,
             out_dir=args.out,
         )
+        if args.model == "3d":
+            mesh = {k: v for k, v in (("n_layers", args.n_layers), ("n_circ", args.n_circ)) if v}
+            specs = to_3d(specs, opts3d, mesh)
         if not args.quiet:
-            print(f"grasprom sweep: {len(specs)} cases -> {args.out}", file=sys.stderr)
+            print(
+                f"grasprom sweep: {len(specs)} cases ({args.model}) -> {args.out}",
+                file=sys.stderr,
+            )
         summary = run_sweep(
             specs,
             args.out,

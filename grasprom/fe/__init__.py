@@ -17,6 +17,9 @@ import importlib
 from typing import Any
 
 _LAZY = {
+    "CaseSpec3D": "model3d",
+    "MeshSpec3D": "mesh3d",
+    "run_case_3d": "model3d",
     "CaseResult": "model2d",
     "CaseSpec": "model2d",
     "CorruptCaseError": "datafiles",

@@ -269,6 +269,25 @@ def _check_result(stem: str, result: CaseResult) -> None:
         )
 
 
+def model_keys(spec: Any) -> dict[str, Any]:
+    """What a case sidecar records about its FE model.
+
+    Returns
+    -------
+    dict
+        ``model`` (``"2d"`` or ``"3d"``), ``contact``, ``tube_length_mm`` (None in 2D: the
+        plane-strain ring is infinitely long) and ``ends`` (None in 2D).
+    """
+    if hasattr(spec, "tube_length_mm"):
+        return {
+            "model": "3d",
+            "contact": spec.contact,
+            "tube_length_mm": spec.tube_length_mm,
+            "ends": spec.ends,
+        }
+    return {"model": "2d", "contact": "frictionless", "tube_length_mm": None, "ends": None}
+
+
 def _sidecar(
     spec: CaseSpec,
     result: CaseResult,
@@ -290,6 +309,7 @@ def _sidecar(
         "jaw_length_mm": spec.jaw_length_mm,
         "closed_gap_mm": spec.closed_gap_mm,
         "force_cap_N": spec.force_cap_N,
+        **model_keys(spec),
         "status": result.status,
         "n_steps": int(len(table)),
         "last_gap_mm": _finite_or_none(table["gap_mm"].min()) if len(table) else None,

@@ -266,10 +266,15 @@ def _worker_init(parent_pid: int) -> None:
 
 
 def default_runner(spec: CaseSpec) -> CaseResult:
-    """Run one case with the real FE model, :func:`grasprom.fe.model2d.run_case`.
+    """Run one case with the real FE model: :func:`grasprom.fe.model2d.run_case`, or
+    :func:`grasprom.fe.model3d.run_case_3d` for a ``CaseSpec3D``.
 
     Module-level (picklable) so process pools and Dask workers can import it.
     """
+    if hasattr(spec, "tube_length_mm"):  # a CaseSpec3D
+        from grasprom.fe.model3d import run_case_3d
+
+        return run_case_3d(spec)
     from grasprom.fe.model2d import run_case
 
     return run_case(spec)

@@ -1,0 +1,221 @@
+"""Benchmarks of the 3D clamping model (grasprom.fe.model3d): prints figures, asserts nothing.
+
+Sections (run all, or name some on the command line)::
+
+    python benchmarks/bench_fe3d.py default       # default case: wall time, dofs, 3D/2D ratio
+    python benchmarks/bench_fe3d.py contact       # stick vs frictionless at fixed gaps
+    python benchmarks/bench_fe3d.py length        # tube-length convergence (L, 2L)
+    python benchmarks/bench_fe3d.py mesh          # mesh convergence at fixed gaps
+    python benchmarks/bench_fe3d.py planestrain   # plane-strain 3D vs the 2D model, full stroke
+    python benchmarks/bench_fe3d.py shell         # small-deflection stiffness vs shell theory
+
+Forces in N, gaps in mm.  t = 1.4 mm, Mooney-Rivlin, unless stated.  Timings are wall-clock on
+whatever machine runs this (noisy when shared).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from grasprom.fe.mesh3d import MeshSpec3D
+from grasprom.fe.model2d import CaseSpec, MeshSpec, SolverSettings, run_case
+from grasprom.fe.model3d import CaseSpec3D, run_case_3d, semi_membrane_jaw_stiffness
+
+T = 1.4
+#: bending (20, 10), approach (5), walls meeting (2 t = 2.8), compaction (2.7, 2.6); the
+#: 200 N force cap is reached near gap 2.4 mm
+GAPS = (20.0, 10.0, 5.0, 2.9, 2.7, 2.6)
+FINE = MeshSpec3D(n_layers=3, n_circ=16, n_jaw=6, n_free=8, grading=2.0)
+
+
+def _with_gaps(spec: CaseSpec3D, gaps=GAPS) -> CaseSpec3D:
+    return replace(spec, solver=replace(spec.solver, land_on_gaps_mm=tuple(gaps)))
+
+
+def _force_at(table, gaps=GAPS, col: str = "force_N") -> dict:
+    out = {}
+    for g in gaps:
+        sel = np.isclose(table["gap_mm"], g)
+        out[g] = float(table.loc[sel, col].iloc[0]) if sel.any() else float("nan")
+    return out
+
+
+def _run(spec: CaseSpec3D, label: str):
+    t0 = time.perf_counter()
+    res = run_case_3d(spec)
+    i = res.info
+    print(
+        f"[{label}] {res.status} ({i['status_reason']}): dofs {i['dofs']}, steps {i['steps']}, "
+        f"newton {i['newton_iterations']}, failures {i['failures']}, "
+        f"wall {time.perf_counter() - t0:.1f} s, last gap {i['last_gap_mm']:.3f} mm",
+        flush=True,
+    )
+    return res
+
+
+def _print_row(label: str, values: dict, fmt: str = "{:9.4f}") -> None:
+    print(f"  {label:<28}" + " ".join(fmt.format(v) for v in values.values()), flush=True)
+
+
+def _header(gaps=GAPS) -> None:
+    print(f"  {'gap (mm)':<28}" + " ".join(f"{g:9.2f}" for g in gaps))
+
+
+def _base(**kw) -> CaseSpec3D:
+    return _with_gaps(CaseSpec3D("mr", T, **kw))
+
+
+def bench_default() -> dict:
+    """Default case (stick, free ends) and its ratio to the 2D strip x jaw length."""
+    spec = _base()
+    r3 = _run(spec, "3D default stick")
+    s2 = CaseSpec("mr", T, solver=SolverSettings(land_on_gaps_mm=GAPS))
+    r2 = run_case(s2)
+    f3, f2 = _force_at(r3.table), _force_at(r2.table)
+    _header()
+    _print_row("3D force_N", f3)
+    _print_row("2D force_N (x jaw length)", f2)
+    _print_row("3D / 2D", {g: f3[g] / f2[g] for g in GAPS}, "{:9.3f}")
+    _print_row("3D peak pressure MPa", _force_at(r3.table, col="peak_pressure_MPa"))
+    _print_row("3D contact length mm", _force_at(r3.table, col="contact_length_mm"))
+    return {"3d": f3, "2d": f2, "info": {k: r3.info[k] for k in ("dofs", "steps", "wall_time_s")}}
+
+
+def bench_contact() -> dict:
+    """Stick vs frictionless at the default mesh; tangential share of the stick reaction."""
+    rs = _run(_base(contact="stick"), "stick")
+    rf = _run(_base(contact="frictionless"), "frictionless")
+    fs, ff = _force_at(rs.table), _force_at(rf.table)
+    _header()
+    _print_row("stick force_N", fs)
+    _print_row("frictionless force_N", ff)
+    _print_row("stick / frictionless - 1", {g: fs[g] / ff[g] - 1 for g in GAPS}, "{:9.4f}")
+    _print_row("stick tangential share", _force_at(rs.table, col="tangential_share"))
+    r2 = run_case(CaseSpec("mr", T, solver=SolverSettings(land_on_gaps_mm=GAPS)))
+    f2 = _force_at(r2.table)
+    _print_row("2D force_N (x jaw length)", f2)
+    _print_row("stick / 2D", {g: fs[g] / f2[g] for g in GAPS}, "{:9.3f}")
+    _print_row("frictionless / 2D", {g: ff[g] / f2[g] for g in GAPS}, "{:9.3f}")
+    return {"stick": fs, "frictionless": ff, "2d": f2}
+
+
+def bench_length(lengths=(60.0, 120.0, 240.0)) -> dict:  # n_free: 3, 6, 9 (default mesh 9)
+    """Tube-length convergence of the force at fixed gaps (free ends and seed ends)."""
+    out = {}
+    for ends, L in [("free", L) for L in lengths] + [("seed", L) for L in lengths[1:]]:
+        base = CaseSpec3D("mr", T)
+        n_free = base.mesh.n_free + int(round(3 * np.log2(L / base.tube_length_mm)))
+        mesh = replace(base.mesh, n_free=max(2, n_free))
+        r = _run(_base(tube_length_mm=L, ends=ends, mesh=mesh), f"L={L:g} ends={ends}")
+        out[(ends, L)] = _force_at(r.table)
+    _header()
+    for k, v in out.items():
+        _print_row(f"{k[0]} L={k[1]:g}", v)
+    for ends in ("free", "seed"):
+        for a, b in zip(lengths[:-1], lengths[1:]):
+            if (ends, a) not in out:
+                continue
+            rel = {g: out[(ends, b)][g] / out[(ends, a)][g] - 1 for g in GAPS}
+            _print_row(f"{ends} F(L={b:g})/F(L={a:g})-1", rel, "{:9.4f}")
+    return {f"{k[0]}_{k[1]:g}": v for k, v in out.items()}
+
+
+def bench_mesh() -> dict:
+    """Mesh convergence: default vs a mesh refined in every direction."""
+    rd = _run(_base(), "default mesh")
+    rf = _run(_base(mesh=FINE), "fine mesh")
+    fd, ff = _force_at(rd.table), _force_at(rf.table)
+    _header()
+    _print_row("default", fd)
+    _print_row("fine", ff)
+    _print_row("default / fine - 1", {g: fd[g] / ff[g] - 1 for g in GAPS}, "{:9.4f}")
+    return {"default": fd, "fine": ff}
+
+
+def bench_planestrain(nc: int = 32) -> dict:
+    """Plane-strain 3D (u_z = 0, jaw as long as the tube) vs the 2D model, full stroke."""
+    gaps = (20.0, 10.0, 6.0, 4.0, 3.2, 2.9)
+    L = 2.0
+    spec = CaseSpec3D(
+        "mr",
+        T,
+        jaw_length_mm=L + 2.0,
+        tube_length_mm=L,
+        plane_strain=True,
+        contact="frictionless",
+        closed_gap_mm=2.8,
+        mesh=MeshSpec3D(n_layers=2, n_circ=nc, n_jaw=1, n_free=0, grading=1.0),
+    )
+    r3 = _run(_with_gaps(spec, gaps), f"plane-strain 3D (2 x {nc})")
+    res2 = {}
+    for nl, n in ((2, nc), (4, 2 * nc)):
+        s2 = CaseSpec("mr", T, closed_gap_mm=2.8, mesh=MeshSpec(n_layers=nl, n_circ=n))
+        r2 = run_case(replace(s2, solver=SolverSettings(land_on_gaps_mm=gaps)))
+        res2[(nl, n)] = _force_at(r2.table, gaps, "force_per_length_N_per_mm")
+    f3 = {g: v / L for g, v in _force_at(r3.table, gaps).items()}
+    _header(gaps)
+    _print_row("3D N/mm", f3)
+    for k, v in res2.items():
+        _print_row(f"2D {k} N/mm", v)
+        _print_row(f"3D / 2D {k} - 1", {g: f3[g] / v[g] - 1 for g in gaps}, "{:9.4f}")
+    return {"3d": f3, **{f"2d_{k}": v for k, v in res2.items()}}
+
+
+def bench_shell() -> dict:
+    """Small-deflection jaw stiffness of a long tube vs semi-membrane shell theory."""
+    d = 0.02
+    out = {}
+    for t in (0.8, 1.4):
+        mesh = replace(CaseSpec3D("le", t).mesh, n_free=9)
+        spec = CaseSpec3D(
+            "le",
+            t,
+            tube_length_mm=240.0,
+            contact="frictionless",
+            closed_gap_mm=30.0 - 2 * d,
+            mesh=mesh,
+        )
+        spec = replace(spec, solver=replace(spec.solver, dh_initial_mm=d))
+        r = _run(spec, f"small deflection t={t}")
+        k_fe = float(r.table["force_N"].iloc[-1]) / d
+        m = spec.make_material()
+        Rm = 0.5 * (spec.diameter_mm - t)
+        k_sm = semi_membrane_jaw_stiffness(Rm, t, m.E, m.nu, spec.flat_half_length_mm)
+        D = m.E * t**3 / (12 * (1 - m.nu**2))
+        # 2D ring: diameter change 2 d = (pi/4 - 2/pi) F R^3 / D per unit length, x jaw length
+        k_ring = 2 * D / ((np.pi / 4 - 2 / np.pi) * Rm**3) * spec.jaw_length_mm
+        print(
+            f"  t={t}: FE {k_fe:.4f} N/mm, semi-membrane {k_sm:.4f} N/mm "
+            f"(FE/SM {k_fe / k_sm:.3f}), 2D ring x jaw length {k_ring:.4f} N/mm",
+            flush=True,
+        )
+        out[t] = {"fe": k_fe, "semi_membrane": k_sm, "ring_x_jaw": k_ring}
+    return out
+
+
+SECTIONS = {
+    "shell": bench_shell,
+    "default": bench_default,
+    "contact": bench_contact,
+    "length": bench_length,
+    "mesh": bench_mesh,
+    "planestrain": bench_planestrain,
+}
+
+
+def main(argv: list[str]) -> None:
+    names = argv or list(SECTIONS)
+    results = {}
+    for name in names:
+        print(f"== {name}: {SECTIONS[name].__doc__.splitlines()[0]}", flush=True)
+        results[name] = SECTIONS[name]()
+    print(json.dumps(results, default=str)[:2000])
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

@@ -1,0 +1,137 @@
+"""The 3D variant of a sweep grid: ``grasprom sweep --model 3d`` (issue 18).
+
+:func:`to_3d` turns the validated 2D grid of :func:`grasprom.fe.grid.build_grid` (thickness x
+material, tube and jaw options) into :class:`~grasprom.fe.model3d.CaseSpec3D` cases with the 3D
+options: contact law, tube length and end condition.  The keys every case sidecar records about
+the model are :func:`grasprom.fe.datafiles.model_keys`.  Lengths in mm.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from grasprom.fe.grid import SweepInputError
+
+__all__ = [
+    "CONTACT_LAWS",
+    "ENDS",
+    "MIN_CIRC_3D",
+    "MODELS",
+    "Model3DOptions",
+    "check_options",
+    "to_3d",
+]
+
+MODELS = ("2d", "3d")
+"""FE models of a sweep (``--model``)."""
+
+CONTACT_LAWS = ("stick", "frictionless", "coulomb")
+"""Contact laws of ``--contact`` (``coulomb`` is not implemented yet: refused)."""
+
+ENDS = ("seed", "free")
+"""End conditions of the 3D tube (``--ends``)."""
+
+MIN_CIRC_3D = 6
+"""Fewest divisions along the quarter circumference a 3D case accepts (4 misses the contact)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Model3DOptions:
+    """The 3D options of a sweep; None takes the :class:`CaseSpec3D` default.
+
+    Parameters
+    ----------
+    contact : str or None
+        ``stick`` (no sliding once in contact, seed 003's assumption) or ``frictionless``.
+    friction : float or None
+        Coulomb coefficient (only with ``coulomb``, which is refused for now).
+    tube_length_mm : float or None
+        Length of the modelled tube (mm).
+    ends : str or None
+        ``seed`` (in-plane translations held at the free edges) or ``free``.
+    """
+
+    contact: str | None = None
+    friction: float | None = None
+    tube_length_mm: float | None = None
+    ends: str | None = None
+
+
+def check_options(model: str, opts: Model3DOptions) -> None:
+    """Validate ``--model`` and the 3D options; errors name the option and the value.
+
+    Raises
+    ------
+    SweepInputError
+    """
+    if model not in MODELS:
+        raise SweepInputError(f"--model: {model!r} unknown; valid: {', '.join(MODELS)}")
+    if opts.contact is not None and opts.contact not in CONTACT_LAWS:
+        raise SweepInputError(
+            f"--contact: {opts.contact!r} unknown; valid: {', '.join(CONTACT_LAWS)}"
+        )
+    if opts.contact == "coulomb":
+        raise SweepInputError(
+            "--contact coulomb: not implemented yet; use stick (no sliding) or frictionless"
+        )
+    if opts.friction is not None:
+        raise SweepInputError("--friction: only used with --contact coulomb (not implemented)")
+    if opts.ends is not None and opts.ends not in ENDS:
+        raise SweepInputError(f"--ends: {opts.ends!r} unknown; valid: {', '.join(ENDS)}")
+    tl = opts.tube_length_mm
+    if tl is not None and not (isinstance(tl, int | float) and math.isfinite(tl) and tl > 0):
+        raise SweepInputError(f"--tube-length: must be a length > 0 in mm, got {tl!r}")
+    if model == "2d":
+        given = [n for n, v in (("--tube-length", tl), ("--ends", opts.ends)) if v is not None]
+        if given:
+            raise SweepInputError(f"{', '.join(given)}: only with --model 3d")
+        if opts.contact not in (None, "frictionless"):
+            raise SweepInputError(
+                f"--contact {opts.contact}: the 2D model is frictionless; use --model 3d"
+            )
+
+
+def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, int]) -> list[Any]:
+    """The 3D cases of a validated 2D grid.
+
+    Parameters
+    ----------
+    specs : sequence of CaseSpec
+        The 2D grid (material, thickness, tube and jaw options).
+    opts : Model3DOptions
+    mesh : mapping
+        ``n_layers`` / ``n_circ`` given on the command line (the others take the 3D defaults).
+
+    Returns
+    -------
+    list of CaseSpec3D
+    """
+    from grasprom.fe.mesh3d import MeshSpec3D
+    from grasprom.fe.model3d import CaseSpec3D
+
+    if mesh.get("n_circ", MIN_CIRC_3D) < MIN_CIRC_3D:
+        raise SweepInputError(
+            f"--n-circ: the 3D model needs at least {MIN_CIRC_3D} divisions along the quarter "
+            f"circumference (coarser meshes miss the jaw contact), got {mesh['n_circ']}"
+        )
+    extra = {k: v for k, v in dataclasses.asdict(opts).items() if v is not None}
+    extra.pop("friction", None)
+    mesh3d = MeshSpec3D(**dict(mesh))
+    out = []
+    for s in specs:
+        out.append(
+            CaseSpec3D(
+                material=s.material,
+                thickness_mm=s.thickness_mm,
+                diameter_mm=s.diameter_mm,
+                jaw_length_mm=s.jaw_length_mm,
+                closed_gap_mm=s.closed_gap_mm,
+                force_cap_N=s.force_cap_N,
+                mesh=mesh3d,
+                **extra,
+            )
+        )
+    return out

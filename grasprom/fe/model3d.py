@@ -1,0 +1,891 @@
+"""3D FE model of a tube (colon wall) clamped between two rigid flat jaws of finite length.
+
+Model (issue #18; seed 003's "CS" cylinder with finite jaws):
+
+* tube of outer diameter ``D``, wall ``t``, length ``L``; 1/8 symmetry: ``u_x = 0`` on ``x = 0``,
+  ``u_y = 0`` on ``y = 0`` (the jaws move along ``y``), ``u_z = 0`` on the jaw mid-plane
+  ``z = 0``; the free end ``z = L/2`` is either ``"free"`` or ``"seed"`` (``u_x = u_y = 0``,
+  axial translation free: seed 003's edge condition; rotations are not dofs of a solid);
+* a rigid jaw of length ``jaw_length_mm``: flat (``y = h``) for ``|z| <= jaw_length/2 - r``,
+  rounded off with the edge radius ``r`` beyond, so its edge does not cut the mesh;
+* contact of the outer-wall nodes with the jaw, exact primal active set: ``"stick"`` (default,
+  seed 003's "no sliding at the interface": a touching node is tied to the jaw at its touch
+  point, all three components prescribed, released when its normal reaction turns tensile) or
+  ``"frictionless"`` (the node's normal displacement is prescribed, the tangential one free; on
+  the rounded edge in a rotated frame with the node projected back onto the arc);
+* self-contact of the inner walls = contact of the inner wall with the plane ``y = 0``; the two
+  walls are mirror images, so mirror points never slip relative to each other and this contact
+  is exact for any friction law;
+* Q2 hexahedra (27 nodes) with a discontinuous P1 dilatation/pressure condensed per element
+  (three-field Hu-Washizu, as model2d's P2B/P1 in 2D); the same materials as the 2D model;
+* Newton-Raphson on the potential energy with an energy line search and adaptive stepping
+  (the 2D model's step control, :class:`grasprom.fe.model2d.SolverSettings`).
+
+Forces: ``force_N`` is the total force on one jaw: the 1/8 model's jaw reaction times 4 (two
+halves in ``x``, two in ``z``; the ``y`` symmetry separates the two jaws).  Lengths in mm,
+forces in N, stresses in MPa.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+import pandas as pd
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from grasprom.fe.hyperelastic3d import invariants as _invariants
+from grasprom.fe.hyperelastic3d import pointwise3d, stress_and_tangent
+from grasprom.fe.materials import Material, get_material
+from grasprom.fe.mesh3d import Disc3D, MeshSpec3D, axial_nodes, discretise3d
+from grasprom.fe.model2d import COLUMN_DESCRIPTIONS, COLUMNS, CaseResult, SolverSettings
+
+ENDS = ("free", "seed")
+CONTACTS = ("stick", "frictionless")
+
+#: extra 3D columns appended after the 2D :data:`COLUMNS`
+EXTRA_COLUMNS_3D = ("contact_area_mm2", "contact_length_mm", "tangential_share")
+COLUMNS_3D = (*COLUMNS, *EXTRA_COLUMNS_3D)
+COLUMN_DESCRIPTIONS_3D = {
+    **COLUMN_DESCRIPTIONS,
+    "force_N": "N, total clamping force on one jaw (4 x the 1/8 model's jaw reaction)",
+    "force_per_length_N_per_mm": "N/mm, force_N / jaw_length_mm",
+    "contact_width_mm": "mm, width of the jaw contact across the tube at the jaw mid-plane",
+    "mean_pressure_MPa": "MPa, force_N / contact_area_mm2",
+    "inner_contact_width_mm": "mm, width over which the inner walls touch at the mid-plane",
+    "contact_area_mm2": "mm^2, jaw contact area (reference area of the nodes in contact)",
+    "contact_length_mm": "mm, axial length of the jaw contact (full, both halves)",
+    "tangential_share": "1, sum of tangential / sum of normal nodal jaw reactions",
+}
+
+
+def _default_solver() -> SolverSettings:
+    return SolverSettings(dh_initial_mm=0.1, dh_max_mm=1.0, rtol=1e-8)
+
+
+@dataclass(frozen=True)
+class CaseSpec3D:
+    """One 3D clamping case (mm, N, MPa).
+
+    Parameters
+    ----------
+    material, thickness_mm, diameter_mm, jaw_length_mm, closed_gap_mm, force_cap_N, nu
+        As :class:`grasprom.fe.model2d.CaseSpec`; ``jaw_length_mm`` is the jaw's extent along
+        the tube axis.
+    tube_length_mm : float
+        Length of the modelled tube (mm); half of it is meshed.  Default 240 mm (8 D) with
+        free ends: the colon continues beyond the jaws, and the ovalisation (n = 2) mode decays
+        over ``1/beta_2 = [48 (1 - nu^2) R^6 / (144 t^2)]^(1/4)`` = 32 mm (t = 1.4) to 44 mm
+        (t = 0.8) from the jaw.  Measured (t = 1.4, mr, stick): L = 120 -> 240 mm raises the
+        force by 5.1, 4.4, 1.4, 0.4 % at gaps 20, 10, 5, 2.9 mm; at L = 240 free and seed ends
+        agree within 0.15 % (the end condition no longer matters), see bench_fe3d ``length``.
+    ends : str
+        ``"free"`` (default) or ``"seed"`` (``u_x = u_y = 0`` at ``z = L/2``, seed 003's edge
+        condition; it clamps the ovalisation at the end, so the force depends on ``L``).
+    contact : str
+        ``"stick"`` (default, seed 003's no sliding) or ``"frictionless"`` (slower: the
+        rounded jaw edge needs more active-set passes).
+    friction : float
+        Coulomb coefficient (unused: no ``"coulomb"`` contact yet).
+    jaw_edge_radius_mm : float
+        Radius (mm) rounding off the jaw's edges at ``|z| = jaw_length/2``.
+    plane_strain : bool
+        Hold ``u_z = 0`` everywhere (verification against the 2D model; needs a jaw at least
+        as long as the tube).
+    mesh : MeshSpec3D
+    solver : SolverSettings
+    """
+
+    material: str
+    thickness_mm: float
+    diameter_mm: float = 30.0
+    jaw_length_mm: float = 10.0
+    closed_gap_mm: float = 1.5
+    force_cap_N: float = 200.0
+    tube_length_mm: float = 240.0
+    ends: str = "free"
+    contact: str = "stick"
+    friction: float = 0.0
+    jaw_edge_radius_mm: float = 1.0
+    plane_strain: bool = False
+    mesh: MeshSpec3D = field(default_factory=MeshSpec3D)
+    solver: SolverSettings = field(default_factory=_default_solver)
+    nu: float | None = None
+
+    def make_material(self) -> Material:
+        """The material object of this case."""
+        kw = {} if self.nu is None else {"nu": self.nu}
+        return get_material(self.material, **kw)
+
+    @property
+    def flat_half_length_mm(self) -> float:
+        """Half length (mm) of the flat part of the jaw face."""
+        return 0.5 * self.jaw_length_mm - self.jaw_edge_radius_mm
+
+
+def build_disc(spec: CaseSpec3D) -> Disc3D:
+    """Discretisation of the case's 1/8 tube (axial mesh refined over the jaw)."""
+    half = 0.5 * spec.tube_length_mm
+    z_fine = min(half, 0.5 * spec.jaw_length_mm + spec.mesh.fine_margin_mm)
+    z = axial_nodes(half, z_fine, spec.mesh.n_jaw, spec.mesh.n_free)
+    return discretise3d(0.5 * spec.diameter_mm, spec.thickness_mm, z, spec.mesh)
+
+
+# ----------------------------------------------------------------------------------------------
+# vectorised element kernels
+# ----------------------------------------------------------------------------------------------
+
+
+def kinematics(disc: Disc3D, u: np.ndarray) -> np.ndarray:
+    """Deformation gradients ``F[e, q, i, j]`` at the quadrature points."""
+    ne, nq, nloc, _ = disc.grads.shape
+    ue = u[disc.edofs].reshape(ne, 1, nloc, 3).transpose(0, 1, 3, 2)
+    F = np.matmul(ue, disc.grads)
+    F[..., 0, 0] += 1.0
+    F[..., 1, 1] += 1.0
+    F[..., 2, 2] += 1.0
+    return F
+
+
+def _project(disc: Disc3D, q: np.ndarray) -> np.ndarray:
+    """Element-wise L2 projection of a point field ``q[e, q]`` on the pressure space."""
+    c = np.einsum("ekl,eql,eq->ek", disc.Minv, disc.wpsi, q)
+    return np.einsum("eqk,ek->eq", disc.psi, c)
+
+
+def energy(disc: Disc3D, material: Material, u: np.ndarray) -> float:
+    """Strain energy (N mm) of the 1/8 model; ``inf`` if an element is inverted."""
+    F = kinematics(disc, u)
+    I1, I2, J, _, _ = _invariants(F)
+    if not np.all(J > 0):
+        return np.inf
+    theta = _project(disc, J)
+    if not np.all(theta > 0):
+        return np.inf
+    beta = disc.beta
+    W = pointwise3d(material, I1, I2, J)[0] + (1.0 - beta) * material.volumetric(theta)[0]
+    if beta > 0:
+        W = W + beta * material.volumetric(J)[0]
+    return float((disc.dx * W).sum())
+
+
+def _element_stiffness(disc: Disc3D, A: np.ndarray) -> np.ndarray:
+    """``K[e, (a i), (b k)] = sum_q G[a, j] A[i, j, k, l] G[b, l] dx`` (N/mm)."""
+    G = disc.grads
+    ne, nq, nloc, _ = G.shape
+    Adx = A * disc.dx[..., None, None, None, None]
+    At = Adx.transpose(0, 1, 3, 2, 4, 5).reshape(ne, nq, 3, 27)  # [j, (i k l)]
+    T = np.matmul(G, At).reshape(ne, nq, nloc * 9, 3)  # [(a i k), l]
+    T = T.transpose(0, 2, 1, 3).reshape(ne, nloc * 9, nq * 3)
+    Gb = G.transpose(0, 1, 3, 2).reshape(ne, nq * 3, nloc)
+    K = np.matmul(T, Gb).reshape(ne, nloc, 3, 3, nloc)  # [a, i, k, b]
+    return K.transpose(0, 1, 2, 4, 3).reshape(ne, 3 * nloc, 3 * nloc)
+
+
+def assemble(disc: Disc3D, material: Material, u: np.ndarray, tangent: bool = True):
+    """Internal force (N), optionally the CSR tangent (N/mm), and min det F.
+
+    Returns ``(None, None, minJ)`` if an element is inverted.
+    """
+    F = kinematics(disc, u)
+    J = np.linalg.det(F)
+    minJ = float(J.min())
+    if minJ <= 0:
+        return None, None, minJ
+    theta = _project(disc, J)
+    if not np.all(theta > 0):
+        return None, None, minJ
+    beta = disc.beta
+    _, dU, ddU = material.volumetric(theta)
+    p = (1.0 - beta) * _project(disc, dU)
+    ddU = (1.0 - beta) * ddU
+    k_pt = None
+    if beta > 0:
+        _, dUj, ddUj = material.volumetric(J)
+        p = p + beta * dUj
+        k_pt = beta * ddUj
+    P, A, J, H = stress_and_tangent(material, F, p, tangent, k_pt)
+    G = disc.grads
+    ne, nq, nloc, _ = G.shape
+    fe = (np.matmul(G, P.transpose(0, 1, 3, 2)) * disc.dx[..., None, None]).sum(axis=1)
+    f = np.bincount(disc.edofs.ravel(), weights=fe.ravel(), minlength=disc.ndof)
+    if not tangent:
+        return f, None, minJ
+    Ke = _element_stiffness(disc, A)
+    gq = np.matmul(G, H.transpose(0, 1, 3, 2)).reshape(ne, nq, 3 * nloc)  # d det F / du
+    Gm = np.matmul(disc.wpsi.transpose(0, 2, 1), gq)
+    D = np.einsum("eqk,eql,eq->ekl", disc.wpsi, disc.psi, ddU)
+    MG = np.matmul(disc.Minv, Gm)
+    Ke += np.matmul(MG.transpose(0, 2, 1), np.matmul(D, MG))
+    data = np.bincount(disc.scatter, weights=Ke.ravel(), minlength=disc.rows.size)
+    K = sp.csr_matrix((data, disc.indices, disc.indptr), shape=(disc.ndof, disc.ndof))
+    return f, K, minJ
+
+
+# ----------------------------------------------------------------------------------------------
+# linear solver
+# ----------------------------------------------------------------------------------------------
+
+
+def _sparse_solve(K: sp.spmatrix, rhs: np.ndarray, solver: str = "auto") -> np.ndarray:
+    """Solve ``K x = rhs``: SuperLU with the MMD(A^T + A) ordering, or pypardiso on request.
+
+    Measured on this (shared, 2-core) machine for the 8k-14k dof tangents: SuperLU/MMD 0.32 s
+    and 0.62 s, SuperLU/COLAMD 0.47 s and 1.9 s, PARDISO 0.47 s and 0.84 s; hence the default.
+    """
+    if solver == "pardiso":
+        import pypardiso
+
+        return pypardiso.spsolve(sp.csr_matrix(K), rhs)
+    return spla.spsolve(sp.csc_matrix(K), rhs, permc_spec="MMD_AT_PLUS_A")
+
+
+# ----------------------------------------------------------------------------------------------
+# jaw geometry and contact constraints
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class JawProfile:
+    """Jaw face in the ``(y, z)`` plane: flat ``y = h`` for ``z <= a``, arc of radius ``r``.
+
+    Parameters
+    ----------
+    a : float
+        Half length (mm) of the flat part.
+    r : float
+        Edge radius (mm); the jaw ends at ``z = a + r``.
+    """
+
+    a: float
+    r: float
+
+    def project(self, y: np.ndarray, z: np.ndarray, h: float):
+        """Gap (mm, < 0 penetrating), closest point ``(yp, zp)`` and outward normal ``(ny, nz)``.
+
+        The normal points from the jaw into the tissue; nodes beyond the jaw get ``gap = inf``.
+        """
+        gap = np.full(z.shape, np.inf)
+        yp = np.full(z.shape, float(h))
+        zp = z.astype(float).copy()
+        ny = -np.ones(z.shape)
+        nz = np.zeros(z.shape)
+        flat = z <= self.a
+        gap[flat] = h - y[flat]
+        if self.r > 0:
+            dy = y - (h + self.r)
+            dz = z - self.a
+            arc = (~flat) & (dz < self.r) & (dy <= 0)
+            dist = np.hypot(dy[arc], dz[arc])
+            gap[arc] = dist - self.r
+            ny[arc] = dy[arc] / dist
+            nz[arc] = dz[arc] / dist
+            yp[arc] = h + self.r + self.r * ny[arc]
+            zp[arc] = self.a + self.r * nz[arc]
+        return gap, yp, zp, ny, nz
+
+    def normal_at(self, z: np.ndarray):
+        """Outward normal ``(ny, nz)`` of the jaw face at axial position ``z`` on the face."""
+        s = np.clip((z - self.a) / self.r, 0.0, 1.0) if self.r > 0 else np.zeros(z.shape)
+        nz = np.where(z > self.a, s, 0.0)
+        return -np.sqrt(1.0 - nz * nz), nz
+
+
+@dataclass
+class _Contact:
+    """Contact state: active jaw nodes (over ``disc.outer_nodes``), stick anchors, floor."""
+
+    jaw_active: np.ndarray
+    anchor: np.ndarray  # (n_outer, 3): x, y - h, z of the stick point
+    floor_active: np.ndarray
+
+    def copy(self) -> _Contact:
+        return _Contact(self.jaw_active.copy(), self.anchor.copy(), self.floor_active.copy())
+
+
+@dataclass(frozen=True)
+class _Setup:
+    """Everything fixed during a case (internal)."""
+
+    disc: Disc3D
+    material: Material
+    jaw: JawProfile
+    stick: bool
+    base_fixed: np.ndarray  # symmetry, ends, plane strain
+    settings: SolverSettings
+    fscale: float
+    solver: str
+    disc_thickness: float
+
+
+def _base_fixed(disc: Disc3D, ends: str, plane_strain: bool) -> np.ndarray:
+    fixed = np.zeros(disc.ndof, dtype=bool)
+    fixed[3 * np.flatnonzero(disc.on_x0)] = True
+    fixed[3 * np.flatnonzero(disc.on_y0) + 1] = True
+    fixed[3 * np.flatnonzero(disc.on_z0) + 2] = True
+    if ends == "seed":
+        end = np.flatnonzero(disc.on_end)
+        fixed[3 * end] = True
+        fixed[3 * end + 1] = True
+    if plane_strain:
+        fixed[2::3] = True
+    return fixed
+
+
+def _targets(st: _Setup, c: _Contact, h: float, u: np.ndarray):
+    """Dirichlet set and values (stick, floor, symmetry) and the frictionless jaw nodes."""
+    d = st.disc
+    fixed = st.base_fixed.copy()
+    values = np.where(fixed, 0.0, u)
+    jn = d.outer_nodes[c.jaw_active]
+    fr = np.zeros(0, dtype=np.int64)
+    if st.stick:
+        anc = c.anchor[c.jaw_active]
+        for i in range(3):
+            fixed[3 * jn + i] = True
+        values[3 * jn] = anc[:, 0] - d.X[jn, 0]
+        values[3 * jn + 1] = h + anc[:, 1] - d.X[jn, 1]
+        values[3 * jn + 2] = anc[:, 2] - d.X[jn, 2]
+    else:
+        fr = jn
+    fn = d.inner_nodes[c.floor_active]
+    fixed[3 * fn + 1] = True
+    values[3 * fn + 1] = -d.X[fn, 1]
+    values[st.base_fixed] = 0.0
+    return fixed, values, fr
+
+
+def _enforce(st: _Setup, u, fixed, values, fr, h):
+    """Displacements with the Dirichlet values set and frictionless nodes on the jaw face."""
+    u = np.where(fixed, values, u)
+    if fr.size:
+        X = st.disc.X
+        y = X[fr, 1] + u[3 * fr + 1]
+        z = X[fr, 2] + u[3 * fr + 2]
+        _, yp, zp, _, _ = st.jaw.project(y, z, h)
+        u[3 * fr + 1] = yp - X[fr, 1]
+        zfree = ~st.base_fixed[3 * fr + 2]
+        u[3 * fr[zfree] + 2] = zp[zfree] - X[fr[zfree], 2]
+    return u
+
+
+def _frame(st: _Setup, u, fixed, fr, h):
+    """Newton frame: fixed mask in the rotated frame and the rotation ``Q`` (or None).
+
+    Frictionless nodes on the flat face have their ``y`` dof fixed; those on the rounded edge
+    get their ``(y, z)`` dofs rotated into (normal, tangent), the normal one fixed.
+    """
+    fx = fixed.copy()
+    if fr.size == 0:
+        return fx, None
+    X = st.disc.X
+    _, _, _, ny, nz = st.jaw.project(X[fr, 1] + u[3 * fr + 1], X[fr, 2] + u[3 * fr + 2], h)
+    fx[3 * fr + 1] = True
+    rot = (nz != 0.0) & ~st.base_fixed[3 * fr + 2]
+    if not np.any(rot):
+        return fx, None
+    nodes, ny, nz = fr[rot], ny[rot], nz[rot]
+    iy, iz = 3 * nodes + 1, 3 * nodes + 2
+    keep = np.ones(st.disc.ndof, dtype=bool)
+    keep[iy] = False
+    keep[iz] = False
+    idx = np.flatnonzero(keep)
+    rows = np.concatenate([idx, iy, iy, iz, iz])
+    cols = np.concatenate([idx, iy, iz, iy, iz])
+    vals = np.concatenate([np.ones(idx.size), ny, -nz, nz, ny])
+    n = st.disc.ndof
+    return fx, sp.csr_matrix((vals, (rows, cols)), shape=(n, n))
+
+
+def _constrained(st: _Setup, K: sp.csr_matrix, fixed: np.ndarray, rotated: bool):
+    """K with the rows/cols of ``fixed`` replaced by identity."""
+    d = st.disc
+    if not rotated:
+        keep = ~(fixed[d.rows] | fixed[d.cols])
+        data = K.data * keep
+        data[d.diag_pos[fixed]] = 1.0
+        return sp.csr_matrix((data, d.indices, d.indptr), shape=K.shape)
+    free = sp.diags((~fixed).astype(float))
+    return (free @ K @ free + sp.diags(fixed.astype(float))).tocsr()
+
+
+class _NewtonFailure(Exception):
+    pass
+
+
+def _descent(st: _Setup, Kc: sp.csr_matrix, r: np.ndarray) -> np.ndarray:
+    """Newton direction ``-Kc^-1 r`` with a Levenberg shift if it is not a descent direction."""
+    shift = 0.0
+    for _ in range(6):
+        Ks = Kc if shift == 0.0 else Kc + shift * sp.identity(Kc.shape[0], format="csr")
+        try:
+            du = _sparse_solve(Ks, -r, st.solver)
+        except RuntimeError:
+            du = None
+        if du is not None and np.all(np.isfinite(du)) and r @ du < 0:
+            return du
+        shift = 1e-3 * abs(Kc.diagonal()).mean() if shift == 0.0 else shift * 10.0
+    raise _NewtonFailure("no descent direction")
+
+
+def _line_search(st: _Setup, u, du, slope, rnorm, cons, h, amax: float = 1.0):
+    """Energy line search along ``du`` (projected on the constraints) from ``alpha = amax``.
+
+    Returns the new displacements and the accepted step length.
+    """
+    fixed, values, fr = cons
+    e0 = energy(st.disc, st.material, u)
+    alpha = amax
+    for _ in range(12):
+        ut = _enforce(st, u + alpha * du, fixed, values, fr, h)
+        et = energy(st.disc, st.material, ut)
+        if np.isfinite(et):
+            if et <= e0 + 1e-4 * alpha * slope:
+                return ut, alpha
+            if alpha == 1.0:
+                ft, _, _ = assemble(st.disc, st.material, ut, tangent=False)
+                fxt, Q = _frame(st, ut, fixed, fr, h)
+                rt = ft if Q is None else Q.T @ ft
+                if np.linalg.norm(np.where(fxt, 0.0, rt)) < 0.5 * rnorm:
+                    return ut, alpha
+        alpha *= 0.5
+    raise _NewtonFailure("line search failed")
+
+
+def _penetration(st: _Setup, c: _Contact, u, h) -> float:
+    """Largest penetration (mm) of an inactive outer node into the jaw or inner node below 0."""
+    d = st.disc
+    on = d.outer_nodes[~c.jaw_active]
+    inn = d.inner_nodes[~c.floor_active]
+    pen = 0.0
+    if on.size:
+        gap = st.jaw.project(d.X[on, 1] + u[3 * on + 1], d.X[on, 2] + u[3 * on + 2], h)[0]
+        pen = max(pen, float(-gap.min()))
+    if inn.size:
+        pen = max(pen, float(-(d.X[inn, 1] + u[3 * inn + 1]).min()))
+    return pen
+
+
+def _feasible_alpha(st: _Setup, c: _Contact, u, du, cons, h) -> float:
+    """Largest step length <= 1 that pushes no inactive node deeper than ``0.02 t``."""
+    fixed, values, fr = cons
+    tol = 0.02 * st.disc_thickness
+
+    def pen(alpha):
+        return _penetration(st, c, _enforce(st, u + alpha * du, fixed, values, fr, h), h)
+
+    if pen(1.0) <= tol:
+        return 1.0
+    lo, hi = 0.0, 1.0
+    for _ in range(30):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if pen(mid) <= tol else (lo, mid)
+    return hi
+
+
+def _newton(st: _Setup, u, cons, h, c: _Contact):
+    """Newton-Raphson on the free dofs; returns ``(u, f, K, iterations, contact_event)``.
+
+    A step that would push inactive nodes deeper than ``0.02 t`` into the jaw or the floor is
+    cut at the touch and the solve returns early (``contact_event``) for the active set.
+    """
+    fixed, values, fr = cons
+    u = _enforce(st, u, fixed, values, fr, h)
+    f, K, _ = assemble(st.disc, st.material, u)
+    if f is None:
+        raise _NewtonFailure("inverted element at start of Newton")
+    tol = st.settings.rtol * st.fscale
+    for it in range(1, st.settings.max_newton + 1):
+        fx, Q = _frame(st, u, fixed, fr, h)
+        r = f if Q is None else Q.T @ f
+        r = np.where(fx, 0.0, r)
+        rnorm = np.linalg.norm(r)
+        if rnorm <= tol:
+            return u, f, K, it - 1, False
+        Kr = K if Q is None else (Q.T @ K @ Q).tocsr()
+        dv = _descent(st, _constrained(st, Kr, fx, Q is not None), r)
+        dv[fx] = 0.0
+        du = dv if Q is None else Q @ dv
+        amax = _feasible_alpha(st, c, u, du, cons, h)
+        event = amax < 1.0
+        ut = _enforce(st, u + amax * du, fixed, values, fr, h) if event else None
+        if ut is None or not np.isfinite(energy(st.disc, st.material, ut)):
+            ut, alpha = _line_search(st, u, du, r @ dv, rnorm, cons, h, amax)
+            event = event and alpha == amax
+        u = ut
+        f, K, _ = assemble(st.disc, st.material, u)
+        if f is None:
+            raise _NewtonFailure("inverted element")
+        if event:
+            return u, f, K, it, True
+    raise _NewtonFailure("Newton did not converge")
+
+
+def _predict(st: _Setup, u, K, fixed, jump):
+    """Tangent predictor: the free dofs follow a prescribed jump to first order."""
+    mask = fixed | (jump != 0.0)
+    rhs = np.where(mask, 0.0, -(K @ jump))
+    du = _sparse_solve(_constrained(st, K, mask, False), rhs, st.solver)
+    if np.all(np.isfinite(du)):
+        up = u + np.where(mask, 0.0, du) + jump
+        if np.isfinite(energy(st.disc, st.material, up)):
+            return up
+    return u + jump  # near a limit point the linear predictor can invert elements
+
+
+def _jaw_normals(st: _Setup, c: _Contact, u, h):
+    """Outward jaw normals ``(ny, nz)`` at all outer nodes (stick: at the anchor)."""
+    d = st.disc
+    on = d.outer_nodes
+    if st.stick:
+        ny, nz = st.jaw.normal_at(c.anchor[:, 2])
+        return ny, nz
+    _, _, _, ny, nz = st.jaw.project(d.X[on, 1] + u[3 * on + 1], d.X[on, 2] + u[3 * on + 2], h)
+    return ny, nz
+
+
+def _update_active(st: _Setup, c: _Contact, u, f, h, add_only: bool = False):
+    """New contact state from a converged solution (release tensile, add penetrating).
+
+    ``add_only``: the state is not in equilibrium (a cut Newton step); only add nodes.
+    """
+    d = st.disc
+    on, inn = d.outer_nodes, d.inner_nodes
+    ny, nz = _jaw_normals(st, c, u, h)
+    lam = f[3 * on + 1] * ny + f[3 * on + 2] * nz
+    xyz = d.X + u.reshape(-1, 3)
+    gap, yp, zp, _, _ = st.jaw.project(xyz[on, 1], xyz[on, 2], h)
+    tol = 1e-9 * max(1.0, h)
+    new = c.copy()
+    keep = np.ones_like(c.jaw_active) if add_only else lam >= 0.0
+    new.jaw_active = np.where(c.jaw_active, keep, gap < -tol)
+    added = new.jaw_active & ~c.jaw_active
+    new.anchor[added] = np.column_stack([xyz[on[added], 0], yp[added] - h, zp[added]])
+    keep_f = np.ones_like(c.floor_active) if add_only else f[3 * inn + 1] >= 0.0
+    new.floor_active = np.where(c.floor_active, keep_f, xyz[inn, 1] < -tol)
+    same = np.array_equal(new.jaw_active, c.jaw_active)
+    return new, same and np.array_equal(new.floor_active, c.floor_active)
+
+
+def _solve_step(st: _Setup, u, K_old, c: _Contact, h: float):
+    """Equilibrium at jaw height ``h`` (mm) with the active-set loop."""
+    iters = 0
+    for _ in range(st.settings.max_active_set):
+        fixed, values, fr = _targets(st, c, h, u)
+        jump = _enforce(st, u, fixed, values, fr, h) - u
+        if K_old is not None and np.any(jump != 0.0):
+            u = _predict(st, u, K_old, fixed, jump)
+        u, f, K, it, event = _newton(st, u, (fixed, values, fr), h, c)
+        iters += it
+        K_old = K
+        new, settled = _update_active(st, c, u, f, h, add_only=event)
+        if settled and not event:
+            return u, f, K, c, iters
+        c = new
+    raise _NewtonFailure("active set did not settle")
+
+
+# ----------------------------------------------------------------------------------------------
+# measures and the case driver
+# ----------------------------------------------------------------------------------------------
+
+
+def contact_measures(st: _Setup, c: _Contact, u, f, h) -> dict:
+    """Jaw force of the 1/8 model (N), contact extents (mm), pressures (MPa), shares."""
+    d = st.disc
+    act = c.jaw_active
+    jn = d.outer_nodes[act]
+    xyz = d.X + u.reshape(-1, 3)
+    out = {"force_q": 0.0, "width": 0.0, "length": 0.0, "peak": 0.0, "area": 0.0}
+    out.update({"share": 0.0, "inner_width": 0.0})
+    if jn.size:
+        ny, nz = _jaw_normals(st, c, u, h)
+        # symmetry reactions (u_x on x = 0, u_z on z = 0) are not contact forces
+        fj = np.where(st.base_fixed.reshape(-1, 3)[jn], 0.0, f.reshape(-1, 3)[jn])
+        lam = fj[:, 1] * ny[act] + fj[:, 2] * nz[act]
+        ft = fj - lam[:, None] * np.column_stack([np.zeros(jn.size), ny[act], nz[act]])
+        area = d.outer_area[act]
+        mid = d.on_z0[jn]
+        out["force_q"] = float(-f[3 * jn + 1].sum())
+        out["width"] = 2.0 * float(xyz[jn[mid], 0].max()) if np.any(mid) else 0.0
+        out["length"] = 2.0 * float(xyz[jn, 2].max())
+        out["area"] = 4.0 * float(area.sum())
+        pos = area > 0
+        out["peak"] = float(np.max(lam[pos] / area[pos])) if np.any(pos) else 0.0
+        if lam.sum() > 1e-9 * st.fscale:
+            out["share"] = float(np.linalg.norm(ft, axis=1).sum() / lam.sum())
+    fn = d.inner_nodes[c.floor_active]
+    fn = fn[d.on_z0[fn]]
+    if fn.size:
+        out["inner_width"] = 2.0 * float(xyz[fn, 0].max() - xyz[fn, 0].min())
+    return out
+
+
+def _row(spec: CaseSpec3D, h: float, m: dict, minJ: float, iters: int) -> dict:
+    force = 4.0 * m["force_q"]
+    vals = (
+        2 * h,
+        0.5 * spec.diameter_mm - h,
+        force,
+        force / spec.jaw_length_mm,
+        m["width"],
+        m["peak"],
+        force / m["area"] if m["area"] > 0 else 0.0,
+        m["inner_width"],
+        minJ,
+        iters,
+        m["area"],
+        m["length"],
+        m["share"],
+    )
+    return dict(zip(COLUMNS_3D, vals))
+
+
+def _setup(spec: CaseSpec3D, solver: str) -> _Setup:
+    _validate_spec(spec)
+    material = spec.make_material()
+    disc = build_disc(spec)
+    jaw = JawProfile(spec.flat_half_length_mm, spec.jaw_edge_radius_mm)
+    t = spec.thickness_mm
+    return _Setup(
+        disc=disc,
+        material=material,
+        jaw=jaw,
+        stick=spec.contact == "stick",
+        base_fixed=_base_fixed(disc, spec.ends, spec.plane_strain),
+        settings=spec.solver,
+        fscale=material.mu * t * t,
+        solver=solver,
+        disc_thickness=t,
+    )
+
+
+def _initial_contact(st: _Setup, R: float) -> _Contact:
+    d = st.disc
+    on = d.outer_nodes
+    X = d.X[on]
+    c = _Contact(
+        np.zeros(on.size, dtype=bool), np.zeros((on.size, 3)), np.zeros(d.inner_nodes.size, bool)
+    )
+    top = np.isclose(X[:, 0], 0.0, atol=1e-12) & (X[:, 2] <= st.jaw.a + 1e-12)
+    c.jaw_active[top] = True
+    c.anchor[:, 0] = X[:, 0]
+    c.anchor[:, 1] = X[:, 1] - R
+    c.anchor[:, 2] = X[:, 2]
+    return c
+
+
+def _next_step(spec: CaseSpec3D, h, dh, iters, force, force_prev) -> float:
+    """Next jaw step (mm) from the Newton effort and the relative force change."""
+    s = spec.solver
+    grow = 1.5 if iters <= 6 else (1.0 if iters <= 12 else 0.6)
+    dh_next = dh * grow
+    if force > s.force_floor_N and force_prev > 0:
+        rel = (force - force_prev) / force_prev
+        if rel > 0:
+            dh_next = min(dh_next, dh * s.max_rel_force_step / rel)
+    return max(dh_next, 2 * s.dh_min_mm)
+
+
+def _limit_step(spec: CaseSpec3D, h, dh, h_end, landing) -> float:
+    s, t = spec.solver, spec.thickness_mm
+    dh = min(dh, s.dh_max_mm, h - h_end)
+    if h > t:  # resolve the walls meeting: approach h = t geometrically
+        dh = min(dh, max(0.01 * t, s.approach_fraction * (h - t)))
+    for hc in landing:
+        if h - dh < hc < h - 1e-12:
+            dh = h - hc
+    return dh
+
+
+def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto") -> CaseResult:
+    """Run one 3D clamping case from first touch to the closed gap or the force cap.
+
+    Parameters
+    ----------
+    spec : CaseSpec3D
+        Geometry (mm), material, contact, limits, mesh and solver settings.
+    progress : callable, optional
+        Called as ``progress(gap_mm, force_N)`` after each converged step.
+    solver : str
+        Sparse solver: ``"auto"``/``"superlu"`` (scipy SuperLU) or ``"pardiso"`` (needs
+        the optional ``pypardiso``).
+
+    Returns
+    -------
+    CaseResult
+        Table (columns :data:`COLUMNS_3D`, units in :data:`COLUMN_DESCRIPTIONS_3D`), status
+        ``"complete"``/``"partial"`` and the solver record.
+    """
+    t0 = time.perf_counter()
+    st = _setup(spec, solver)
+    s = spec.solver
+    R = 0.5 * spec.diameter_mm
+    h_end = 0.5 * spec.closed_gap_mm
+    c = _initial_contact(st, R)
+    u = np.zeros(st.disc.ndof)
+    f, K, _ = assemble(st.disc, st.material, u)
+    rows = [_row(spec, R, contact_measures(st, c, u, f, R), 1.0, 0)]
+    h, dh = R, s.dh_initial_mm
+    landing = sorted((0.5 * g for g in s.land_on_gaps_mm), reverse=True)
+    n_fail, total_newton, force_prev = 0, 0, 0.0
+    fail_log: list[dict] = []
+    status, reason = "partial", ""
+    while True:
+        dh = _limit_step(spec, h, dh, h_end, landing)
+        if dh < s.dh_min_mm and h - h_end > s.dh_min_mm:
+            reason = f"step below dh_min_mm={s.dh_min_mm} at gap {2 * h:.4f} mm"
+            break
+        try:
+            u_new, f_new, K_new, c_new, iters = _solve_step(st, u, K, c, h - dh)
+        except (_NewtonFailure, RuntimeError, ValueError, FloatingPointError) as exc:
+            n_fail += 1
+            fail_log.append({"gap_mm": 2 * (h - dh), "dh_mm": dh, "reason": str(exc)})
+            dh *= 0.25
+            continue
+        u, f, K, c, h = u_new, f_new, K_new, c_new, h - dh
+        total_newton += iters
+        minJ = float(np.linalg.det(kinematics(st.disc, u)).min())
+        row = _row(spec, h, contact_measures(st, c, u, f, h), minJ, iters)
+        rows.append(row)
+        if progress is not None:
+            progress(2 * h, row["force_N"])
+        if row["force_N"] >= spec.force_cap_N:
+            status, reason = "complete", "force cap reached"
+            break
+        if h <= h_end + 1e-12:
+            status, reason = "complete", "closed gap reached"
+            break
+        dh = _next_step(spec, h, dh, iters, row["force_N"], force_prev)
+        force_prev = row["force_N"]
+    table = pd.DataFrame(rows, columns=list(COLUMNS_3D))
+    info = _info(spec, st, table, reason, total_newton, n_fail, fail_log, h, t0)
+    return CaseResult(table=table, status=status, info=info)
+
+
+def _info(spec, st: _Setup, table, reason, total_newton, n_fail, fail_log, h, t0) -> dict:
+    d = st.disc
+    return {
+        "model": "3d",
+        "status_reason": reason,
+        "steps": len(table) - 1,
+        "newton_iterations": int(total_newton),
+        "failures": n_fail,
+        "failure_log": fail_log[-20:],
+        "last_gap_mm": float(2 * h),
+        "max_force_N": float(table["force_N"].max()),
+        "dofs": int(d.ndof),
+        "elements": int(d.edofs.shape[0]),
+        "wall_time_s": time.perf_counter() - t0,
+        "material_constants": st.material.constants(),
+        "mesh": asdict(spec.mesh),
+        "solver": asdict(spec.solver),
+        "linear_solver": _solver_name(st.solver),
+        "contact": spec.contact,
+        "tube_length_mm": spec.tube_length_mm,
+        "ends": spec.ends,
+        "jaw_edge_radius_mm": spec.jaw_edge_radius_mm,
+        "plane_strain": spec.plane_strain,
+        "element": "Q2 hexahedron (27 nodes, 3x3x3 Gauss), discontinuous "
+        + ("P1" if spec.mesh.element == "Q2/P1" else "P0")
+        + " dilatation/pressure condensed per element",
+        "force_definition": "force_N = 4 x the 1/8 model's jaw reaction (N)",
+    }
+
+
+def _solver_name(solver: str) -> str:
+    return "pypardiso (MKL PARDISO)" if solver == "pardiso" else "scipy SuperLU (MMD_AT_PLUS_A)"
+
+
+def _validate_spec(spec: CaseSpec3D) -> None:
+    R = 0.5 * spec.diameter_mm
+    checks = (
+        ("diameter_mm", spec.diameter_mm, spec.diameter_mm > 0),
+        ("thickness_mm", spec.thickness_mm, 0 < spec.thickness_mm < R),
+        ("jaw_length_mm", spec.jaw_length_mm, spec.jaw_length_mm > 0),
+        ("jaw_edge_radius_mm", spec.jaw_edge_radius_mm, 0 <= spec.flat_half_length_mm),
+        ("closed_gap_mm", spec.closed_gap_mm, 0 < spec.closed_gap_mm < spec.diameter_mm),
+        ("force_cap_N", spec.force_cap_N, spec.force_cap_N > 0),
+        ("tube_length_mm", spec.tube_length_mm, spec.tube_length_mm > 0),
+    )
+    for name, value, ok in checks:
+        if not (np.isfinite(value) and ok):
+            raise ValueError(f"invalid {name}={value!r}")
+    if spec.ends not in ENDS:
+        raise ValueError(f"unknown ends {spec.ends!r}; valid: {', '.join(ENDS)}")
+    if spec.contact not in CONTACTS:
+        raise ValueError(f"unknown contact {spec.contact!r}; valid: {', '.join(CONTACTS)}")
+    if spec.plane_strain and spec.flat_half_length_mm < 0.5 * spec.tube_length_mm:
+        raise ValueError("plane_strain needs a flat jaw at least as long as the tube")
+
+
+def solve_dirichlet(
+    disc: Disc3D,
+    material: Material,
+    fixed: np.ndarray,
+    values: np.ndarray,
+    settings: SolverSettings | None = None,
+    solver: str = "superlu",
+):
+    """Static equilibrium with prescribed displacements only (no contact), e.g. for checks.
+
+    Parameters
+    ----------
+    disc : Disc3D
+    material : Material
+    fixed : ndarray of bool (ndof,)
+        Prescribed dofs.
+    values : ndarray (ndof,)
+        Their displacements (mm).
+    settings : SolverSettings, optional
+    solver : str
+        See :func:`run_case_3d`.
+
+    Returns
+    -------
+    u, f : ndarray
+        Displacements (mm) and internal nodal forces (N) = the reactions at ``fixed``.
+    """
+    settings = settings or _default_solver()
+    t = float(np.ptp(np.hypot(disc.X[:, 0], disc.X[:, 1])))
+    jaw = JawProfile(0.0, 0.0)
+    st = _Setup(disc, material, jaw, False, fixed, settings, material.mu * t * t, solver, t)
+    cons = (fixed, np.where(fixed, values, 0.0), np.zeros(0, dtype=np.int64))
+    u, f, _, _, _ = _newton(st, cons[1].copy(), cons, 0.0, _no_contact(disc))
+    return u, f
+
+
+def _no_contact(disc: Disc3D) -> _Contact:
+    """A contact state with every candidate active, so no penetration check applies."""
+    return _Contact(
+        np.ones(disc.outer_nodes.size, bool),
+        np.zeros((disc.outer_nodes.size, 3)),
+        np.ones(disc.inner_nodes.size, bool),
+    )
+
+
+def semi_membrane_jaw_stiffness(
+    R: float, t: float, E: float, nu: float, a: float, n_max: int = 400, n_pts: int = 81
+) -> float:
+    """Jaw stiffness F/d (N/mm) of a long tube pinched by two rigid flat punches, semi-membrane.
+
+    Vlasov's semi-membrane theory: every circumferential mode ``cos(n theta)`` (n even) is a
+    beam on an elastic foundation along the axis, ``EI_n W'''' + k_n W = 2 p(z)``, with
+    ``EI_n = pi E t R^3 / n^4`` (axial membrane), ``k_n = pi D (n^2 - 1)^2 / R^3`` (ring bending,
+    ``D = E t^3 / 12 (1 - nu^2)``); the factor 2: both line loads (top, bottom) load even modes
+    alike.  A uniform load gives ring theory exactly.  The punch (half length ``a``, mm) imposes
+    the same travel ``d`` (one jaw) on ``|z| <= a``: collocation with point loads at ``n_pts``
+    nodes; returns the total force on one jaw per unit travel.
+    """
+    n = np.arange(2, n_max + 1, 2, dtype=float)
+    D = E * t**3 / (12 * (1 - nu**2))
+    EI = np.pi * E * t * R**3 / n**4
+    k = np.pi * D * (n**2 - 1) ** 2 / R**3
+    beta = (k / (4 * EI)) ** 0.25
+    z = np.linspace(-a, a, n_pts)
+    s = np.abs(z[:, None] - z[None, :])[..., None] * beta
+    G = (2 * beta / (2 * k) * np.exp(-s) * (np.cos(s) + np.sin(s))).sum(axis=-1)
+    P = np.linalg.solve(G, np.ones(n_pts))  # point loads for unit travel
+    return float(P.sum())
