@@ -8,7 +8,7 @@ reference for every export) and :func:`grasp_trajectory` makes a grasp-hold-rele
 from __future__ import annotations
 
 import math
-import warnings
+import os
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -24,14 +24,19 @@ if TYPE_CHECKING:  # pandas is imported when used: ``import grasprom.control`` s
 
 __all__ = [
     "SIMULATION_COLUMNS",
+    "MAX_SIMULATION_STEPS",
     "TRAJECTORY_COLUMNS",
     "grasp_trajectory",
+    "max_simulation_steps",
     "simulate",
     "validate_trajectory",
 ]
 
 TRAJECTORY_COLUMNS = ("time_s", "theta_deg")
 """Columns of a handle-angle trajectory: time (s), handle angle (deg)."""
+
+MAX_SIMULATION_STEPS = 2_000_000
+"""Default bound on the controller steps of one :func:`simulate` (``GRASPROM_MAX_STEPS``)."""
 
 SIMULATION_COLUMNS = (
     "time_s",
@@ -102,12 +107,39 @@ def validate_trajectory(
             f"the chain's range [{lo:g}, {hi:g}] deg"
         )
     if np.ptp(th) > 0 and np.abs(th).max() <= 0.4:
-        warnings.warn(
-            f"{source}: theta_deg stays within 0.4 deg -- is it in radians? "
-            "(the column must be in degrees)",
-            stacklevel=2,
+        raise ValueError(
+            f"{source}: column 'theta_deg' stays within 0.4 deg -- is it in radians? "
+            "(the column must be in degrees: multiply by 180/pi)"
         )
+    _check_steps(t, params, source)
     return t, th
+
+
+def max_simulation_steps() -> int:
+    """The most controller steps :func:`simulate` runs: ``GRASPROM_MAX_STEPS`` or 2,000,000.
+
+    Two million steps are 33 minutes at 1 kHz (about 300 MB of output columns).
+    """
+    raw = os.environ.get("GRASPROM_MAX_STEPS", "")
+    try:
+        n = int(raw) if raw.strip() else MAX_SIMULATION_STEPS
+    except ValueError:
+        raise ValueError(f"GRASPROM_MAX_STEPS must be a positive integer, got {raw!r}") from None
+    if n < 1:
+        raise ValueError(f"GRASPROM_MAX_STEPS must be a positive integer, got {raw!r}")
+    return n
+
+
+def _check_steps(t: np.ndarray, params: ControllerParams, source: str) -> None:
+    """The trajectory's duration at the controller rate stays within the step limit."""
+    n = (t[-1] - t[0]) / params.sample_time_s
+    limit = max_simulation_steps()
+    if n + 1 > limit:
+        raise ValueError(
+            f"{source}: column 'time_s' spans {t[-1] - t[0]:.6g} s, {n:.3g} steps at "
+            f"{1.0 / params.sample_time_s:g} Hz, over the limit of {limit} steps (is the time "
+            "in ms? it must be in s); raise the limit with GRASPROM_MAX_STEPS"
+        )
 
 
 def simulate(

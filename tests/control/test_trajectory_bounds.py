@@ -1,0 +1,50 @@
+"""Bad trajectories for ``simulate`` (issue 14): a unit mistake or unbounded work is an error
+that names the column and the limit, raised before any step runs."""
+
+from __future__ import annotations
+
+import time
+
+import pandas as pd
+import pytest
+
+from grasprom.cli import main
+from grasprom.control import ControllerParams, simulate
+
+
+def _traj(t, th):
+    return pd.DataFrame({"time_s": t, "theta_deg": th})
+
+
+def test_angles_in_radians_are_an_error(surrogate):
+    with pytest.raises(ValueError, match=r"theta_deg.*radians\?"):
+        simulate(_traj([0.0, 1.0], [0.38, 0.0]), ControllerParams(), surrogate)
+
+
+@pytest.mark.parametrize("t_end", [1e5, 4000.0])  # 1e5 s, and a 4 s grasp written in ms
+def test_too_many_steps_is_an_error_before_any_work(surrogate, t_end):
+    t0 = time.perf_counter()
+    with pytest.raises(ValueError, match=r"time_s.*over the limit of 2000000 steps.*in ms"):
+        simulate(_traj([0.0, t_end], [22.0, 0.0]), ControllerParams(), surrogate)
+    assert time.perf_counter() - t0 < 5.0  # refused up front, not after minutes
+
+
+def test_the_step_limit_can_be_raised_and_must_be_an_integer(surrogate, monkeypatch):
+    monkeypatch.setenv("GRASPROM_MAX_STEPS", "100")
+    with pytest.raises(ValueError, match="limit of 100 steps"):
+        simulate(_traj([0.0, 1.0], [22.0, 0.0]), ControllerParams(), surrogate)
+    monkeypatch.setenv("GRASPROM_MAX_STEPS", "2000")
+    assert len(simulate(_traj([0.0, 1.0], [22.0, 0.0]), ControllerParams(), surrogate)) == 1001
+    monkeypatch.setenv("GRASPROM_MAX_STEPS", "many")
+    with pytest.raises(ValueError, match="GRASPROM_MAX_STEPS"):
+        simulate(_traj([0.0, 1.0], [22.0, 0.0]), ControllerParams(), surrogate)
+
+
+def test_cli_simulate_names_the_file_and_writes_nothing(tmp_path, capsys):
+    src = tmp_path / "rad.csv"
+    _traj([0.0, 1.0], [0.38, 0.0]).to_csv(src, index=False)
+    out = tmp_path / "sim.csv"
+    assert main(["simulate", "--trajectory", str(src), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "rad.csv" in err and "radians" in err and "Traceback" not in err
+    assert not out.exists()
