@@ -4,6 +4,8 @@ simulation of trajectories and passivity tuning with python-control.
 Layout (a module per concept, lower layers first; ``import control`` inside means python-control):
 
 * :mod:`~grasprom.control.params` -- :class:`ControllerParams` and its JSON file form.
+* :mod:`~grasprom.control.field` -- the stiffness-clipped field (:class:`Field`,
+  :func:`build_field`).
 * :mod:`~grasprom.control.impedance` -- :class:`ImpedanceController`, one step per sample
   (:class:`StepOutput`); the C core of the exports mirrors it.
 * :mod:`~grasprom.control.trajectory` -- trajectories through the controller: :func:`simulate`,
@@ -40,6 +42,7 @@ from grasprom.control.device import (
     load_device,
     save_device,
 )
+from grasprom.control.field import Field, build_field, prony_factor
 from grasprom.control.impedance import (
     COLD_START_ITERATIONS,
     NEWTON_ITERATIONS,
@@ -96,6 +99,9 @@ from grasprom.control.tuning import TuningResult, clipped_limit, tune
 from grasprom.control.verification import amplitude_trend, simulate_hold, verify_by_simulation
 
 __all__ = [
+    "Field",
+    "build_field",
+    "prony_factor",
     "COLD_START_ITERATIONS",
     "CONTROLLER_FILE_VERSION",
     "ControllerParams",

@@ -32,7 +32,7 @@ from typing import NamedTuple
 import numpy as np
 
 from grasprom.chain import kinematics as kin
-from grasprom.control.field import Field, jaw_stiffness_limit_N_per_mm
+from grasprom.control.field import Field, jaw_stiffness_limit_N_per_mm, prony_factor
 from grasprom.control.impedance import ImpedanceController
 from grasprom.control.params import ControllerParams
 from grasprom.surrogate import Surrogate
@@ -88,16 +88,13 @@ def clipped_stiffness_bound_Nm_per_rad(params: ControllerParams) -> float:
     return (
         params.stiffness_limit_Nm_per_rad
         * prony_stiffness_factor(params)
-        / (1.0 + sum(params.prony_g))
+        / prony_factor(params.prony_g)
     )
 
 
 def _field_jaw_force_N(s: Surrogate, params: ControllerParams, th_deg: np.ndarray) -> np.ndarray:
     """Rendered (relaxed) jaw force of the clipped field at chain angles ``th_deg`` (N)."""
-    f = clipped_field(s, params)
-    return np.array([f.jaw_force_N(math.radians(x))[0] for x in np.ravel(th_deg)]).reshape(
-        np.shape(th_deg)
-    )
+    return clipped_field(s, params).jaw_force_array(np.radians(th_deg))[0]
 
 
 def prony_stiffness_factor(params: ControllerParams) -> float:

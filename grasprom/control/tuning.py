@@ -52,6 +52,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from grasprom.control.device import DeviceParams, HandParams
+from grasprom.control.field import prony_factor
 from grasprom.control.margins import ZETA_TARGET, damping_needed, operating_margins
 from grasprom.control.params import ControllerParams
 from grasprom.control.passivity import best_filter, required_damping
@@ -259,7 +260,7 @@ def clipped_limit(params: ControllerParams, k_pass: float) -> float:
     -------
     float
     """
-    return _round_down(k_pass * (1.0 + sum(params.prony_g)) / prony_stiffness_factor(params), 2)
+    return _round_down(k_pass * prony_factor(params.prony_g) / prony_stiffness_factor(params), 2)
 
 
 def _truth(
@@ -291,7 +292,7 @@ def _truth(
             stiffness_bound_Nm_per_rad=clipped_stiffness_bound_Nm_per_rad(params),
             grip_stiffness_limit_N_per_rad=params.stiffness_limit_Nm_per_rad
             / (L3 * 1e-3)
-            / (1.0 + sum(params.prony_g)),
+            / prony_factor(params.prony_g),
         )
     else:
         rendering["coupling_stiffness_N_per_mm"] = params.coupling_stiffness_N_per_mm

@@ -271,7 +271,7 @@ def default_runner(spec: CaseSpec) -> CaseResult:
 
     Module-level (picklable) so process pools and Dask workers can import it.
     """
-    if hasattr(spec, "tube_length_mm"):  # a CaseSpec3D
+    if df.model_keys(spec)["model"] == "3d":
         from grasprom.fe.model3d import run_case_3d
 
         return run_case_3d(spec)

@@ -65,7 +65,6 @@ from grasprom.export.arduino.reference import (
     clipped_field,
     coupled_jaw_force,
     encoder_quantum_rad,
-    field_jaw_force,
     reference_run,
     rendered_jaw_force,
 )
@@ -152,7 +151,6 @@ __all__ = [
     "error_figures",
     "export_arduino",
     "export_main",
-    "field_jaw_force",
     "measure_size",
     "parse_output",
     "reference_run",

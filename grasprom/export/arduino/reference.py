@@ -5,7 +5,8 @@ What the tabulated fixed-point core (``GC_TABULATED``) must reproduce: the step 
 ``ControllerParams.rendering``, either the virtual coupling solved to convergence
 (:func:`coupled_jaw_force`, ``"coupling"``) or the stiffness-clipped field of
 :mod:`grasprom.control.field` interpolated at the chain angle (:func:`clipped_field`,
-:func:`field_jaw_force`, ``"clipped"``); :func:`rendered_jaw_force` dispatches.  The tables
+:meth:`~grasprom.control.field.Field.jaw_force_array`, ``"clipped"``);
+:func:`rendered_jaw_force` dispatches.  The tables
 (:mod:`grasprom.export.arduino.tables`) and the error figures
 (:mod:`grasprom.export.arduino.budget`) are computed from it.
 """
@@ -21,8 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from grasprom.chain import kinematics as kin
-from grasprom.control import ControllerParams, ImpedanceController
-from grasprom.control.field import Field
+from grasprom.control import ControllerParams, Field, ImpedanceController
 from grasprom.surrogate import Surrogate
 
 
@@ -117,32 +117,6 @@ def _cached_field(params: ControllerParams, surrogate: Surrogate) -> Field:
     return f
 
 
-def field_jaw_force(field: Field, theta_rad: NDArray) -> tuple[NDArray, NDArray]:
-    """:meth:`Field.jaw_force_N` on an array of chain angles (rad), vectorised.
-
-    Same operations in the same order as the scalar method (bit-identical in double).
-
-    Parameters
-    ----------
-    field : Field
-    theta_rad : ndarray
-        Chain angles (rad).
-
-    Returns
-    -------
-    (ndarray, ndarray)
-        Rendered jaw force (N) and whether the interval is clipped (the stiffness limit acts).
-    """
-    th = np.asarray(theta_rad, dtype=float)
-    fr = np.asarray(field.force_jaw_N, dtype=float)
-    cl = np.asarray(field.clipped, dtype=bool)
-    u = (th - field.theta_lo_rad) / field.dtheta_rad
-    j = np.clip(np.floor(u).astype(np.int64), 0, len(fr) - 2)
-    w = u - j
-    f0 = fr[j]
-    return f0 + w * (fr[j + 1] - f0), cl[j] | cl[j + 1]
-
-
 def rendered_jaw_force(
     params: ControllerParams,
     surrogate: Surrogate,
@@ -153,7 +127,8 @@ def rendered_jaw_force(
     """Static rendered jaw force at chain angles, by ``params.rendering`` (vectorised).
 
     ``"coupling"``: :func:`coupled_jaw_force` (proxy to convergence); ``"clipped"``: the
-    field of :func:`clipped_field` at the angles (:func:`field_jaw_force`).  Before the
+    field of :func:`clipped_field` at the angles
+    (:meth:`~grasprom.control.field.Field.jaw_force_array`).  Before the
     Prony series, friction, spring and damping.
 
     Parameters
@@ -175,7 +150,7 @@ def rendered_jaw_force(
     th = np.asarray(theta_rad, dtype=float)
     gap, _, _ = chain_terms(th, params.chain_params)
     if params.rendering == "clipped":
-        fg, active = field_jaw_force(clipped_field(params, surrogate, material, thickness_mm), th)
+        fg, active = clipped_field(params, surrogate, material, thickness_mm).jaw_force_array(th)
         return fg, active, gap
     sc = params.tissue_scale
     kc = params.coupling_effective_N_per_mm

@@ -35,7 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from grasprom.chain import kinematics as kin
-from grasprom.control import ControllerParams
+from grasprom.control import ControllerParams, prony_factor
 from grasprom.export.arduino.reference import (
     chain_terms,
     encoder_quantum_rad,
@@ -436,7 +436,7 @@ def _augmented_constants(params: ControllerParams, q: float, fg_max: float) -> d
         raise ValueError(
             "Prony terms out of the fixed-point range (need T/tau in [1.5e-5, 11], g < 16)"
         )
-    if prony_g and (1.0 + sum(params.prony_g)) * fg_max * 1000.0 > 65535:
+    if prony_g and prony_factor(params.prony_g) * fg_max * 1000.0 > 65535:
         raise ValueError("rendered viscoelastic jaw force may exceed 65.5 N (uint16 mN)")
     return {
         "backlash_hb": hb,
