@@ -88,3 +88,12 @@ class CountingRunner:
     def __call__(self, spec: CaseSpec) -> CaseResult:
         self.calls.append((spec.material, spec.thickness_mm))
         return fake_result(spec)
+
+
+def env_runner(spec: CaseSpec) -> CaseResult:
+    """Fake case recording the worker's BLAS thread variables in its info."""
+    import os
+
+    r = fake_result(spec)
+    names = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+    return CaseResult(r.table, r.status, {**r.info, "env": {k: os.environ.get(k) for k in names}})

@@ -198,3 +198,19 @@ def test_kill_and_resume_loses_nothing(tmp_path, python, subprocess_env):
         a = json.loads(p.read_text())
         b = json.loads((out / p.name).read_text())
         assert (a["csv_sha256"], a["input_hash"]) == (b["csv_sha256"], b["input_hash"])
+
+
+def test_pool_workers_run_single_threaded_blas(tmp_path, monkeypatch):
+    """Two workers with a BLAS pool per core each would oversubscribe the machine; a variable
+    the user set wins, and the parent's environment is left as it was."""
+    import os
+
+    for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        monkeypatch.delenv(k, raising=False)
+    monkeypatch.setenv("MKL_NUM_THREADS", "3")
+    s = run_sweep(build_grid("0.8,1.0", "mr"), tmp_path, workers=2, progress=False,
+                  runner=fr.env_runner)  # fmt: skip
+    assert s.ok
+    env = df.read_case(tmp_path / "mr_t0.80.json").meta["fe_info"]["env"]
+    assert env == {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "3"}
+    assert "OMP_NUM_THREADS" not in os.environ and os.environ["MKL_NUM_THREADS"] == "3"
