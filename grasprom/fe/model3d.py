@@ -700,7 +700,7 @@ def _limit_step(spec: CaseSpec3D, h, dh, h_end, landing) -> float:
     return dh
 
 
-def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto") -> CaseResult:
+def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=None) -> CaseResult:
     """Run one 3D clamping case from first touch to the closed gap or the force cap.
 
     Parameters
@@ -712,6 +712,10 @@ def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto") -> CaseRe
     solver : str
         Sparse solver: ``"auto"``/``"superlu"`` (scipy SuperLU) or ``"pardiso"`` (needs
         the optional ``pypardiso``).
+    on_step : callable, optional
+        Called as ``on_step(disc, u, gap_mm, force_N)`` after each converged step with the
+        discretisation and the nodal displacements (mm), e.g. a
+        :class:`grasprom.fe.snapshots3d.SectionRecorder`.
 
     Returns
     -------
@@ -752,6 +756,8 @@ def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto") -> CaseRe
         rows.append(row)
         if progress is not None:
             progress(2 * h, row["force_N"])
+        if on_step is not None:
+            on_step(st.disc, u, 2 * h, row["force_N"])
         if row["force_N"] >= spec.force_cap_N:
             status, reason = "complete", "force cap reached"
             break

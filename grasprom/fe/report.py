@@ -39,6 +39,7 @@ class ReportFiles:
     table_csv: Path
     plot_png: Path
     text: str
+    section_pngs: tuple[Path, ...] = ()
 
 
 def force_at_gap(gap_mm: np.ndarray, force_N: np.ndarray, gap: float) -> float:
@@ -153,4 +154,30 @@ def make_report(
     csv_path = out / "sweep_table.csv"
     atomic_write_bytes(csv_path, table.to_csv(index=False, lineterminator="\n").encode())
     png = plot_sweep(directory, out / "force_gap.png", logy=logy)
-    return ReportFiles(table_csv=csv_path, plot_png=png, text=format_table(table))
+    sections = plot_case_sections(directory, out)
+    return ReportFiles(table_csv=csv_path, plot_png=png, text=format_table(table),
+                       section_pngs=sections)  # fmt: skip
+
+
+def plot_case_sections(
+    directory: str | os.PathLike[str], out_dir: str | os.PathLike[str]
+) -> tuple[Path, ...]:
+    """``sections_<stem>.png`` for every 3D case whose sidecar records deformed sections.
+
+    The 3D sweep stores the mid-plane cross-section and the top line at a few gaps
+    (:mod:`grasprom.fe.snapshots3d`); 2D cases have none and get no picture.
+    """
+    from grasprom.fe.snapshots3d import plot_sections
+
+    pngs = []
+    for meta_path in sorted(Path(directory).glob("*.json")):
+        if meta_path.name == "sweep.json":
+            continue
+        meta = df.read_case(meta_path).meta
+        sections = (meta.get("fe_info") or {}).get("sections")
+        if sections:
+            title = f"{meta['stem']}: 3D tube, {meta.get('contact', '')} contact"
+            pngs.append(
+                plot_sections(sections, title, Path(out_dir) / f"sections_{meta['stem']}.png")
+            )
+    return tuple(pngs)

@@ -273,8 +273,11 @@ def default_runner(spec: CaseSpec) -> CaseResult:
     """
     if df.model_keys(spec)["model"] == "3d":
         from grasprom.fe.model3d import run_case_3d
+        from grasprom.fe.snapshots3d import SectionRecorder
 
-        return run_case_3d(spec)
+        rec = SectionRecorder()
+        res = run_case_3d(spec, on_step=rec)
+        return CaseResult(res.table, res.status, {**res.info, "sections": rec.result()})
     from grasprom.fe.model2d import run_case
 
     return run_case(spec)

@@ -33,6 +33,12 @@ def test_3d_sweep_writes_the_contract_and_the_model_keys(tmp_path, capsys):
     assert meta["model"] == "3d" and meta["contact"] == "stick"
     assert meta["tube_length_mm"] == 30.0 and meta["ends"] == "free"
     assert meta["status"] == "complete" and meta["max_force_N"] > 0
+    # the deformed shape at the last gap, for the report's picture
+    (sec,) = meta["fe_info"]["sections"]
+    assert sec["gap_mm"] == pytest.approx(table["gap_mm"].iloc[-1])
+    assert sec["force_N"] == pytest.approx(table["force_N"].iloc[-1])
+    assert main(["report", str(out), "--out", str(tmp_path / "rep")]) == 0
+    assert (tmp_path / "rep" / "sections_mr_t1.40.png").stat().st_size > 10_000
     # resumable: a second run computes nothing
     capsys.readouterr()
     assert _sweep(out, "--model", "3d", *COARSE) == 0
