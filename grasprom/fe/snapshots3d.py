@@ -55,7 +55,9 @@ def section(disc: Disc3D, u: np.ndarray, gap_mm: float, force_N: float) -> dict[
     outer = disc.outer_nodes[disc.on_z0[disc.outer_nodes]]
     inner = np.union1d(disc.inner_nodes, np.flatnonzero(disc.on_y0))
     r = np.hypot(disc.X[:, 0], disc.X[:, 1])
-    inner = inner[disc.on_z0[inner] & (r[inner] <= r.min() + 1e-9 * r.max())]
+    # the inner wall: within a tenth of the wall of the smallest radius (Q2 edge nodes of the
+    # trilinear geometry sit on chords, slightly inside the circle)
+    inner = inner[disc.on_z0[inner] & (r[inner] <= r.min() + 0.1 * (r.max() - r.min()))]
     top = disc.outer_nodes[disc.on_x0[disc.outer_nodes]]
     top = top[np.argsort(disc.X[top, 2])]
     return {

@@ -38,7 +38,10 @@ def test_sections_follow_the_jaw_and_the_tube_ovalises(run):
     assert outer[0, 1] == pytest.approx(0.5 * last["gap_mm"], abs=1e-6)
     assert outer[-1, 1] == pytest.approx(0.0, abs=1e-9) and outer[-1, 0] > R
     inner = np.asarray(last["inner_xy_mm"])
-    assert np.all(np.hypot(*inner.T) < np.hypot(*outer.T).max())
+    assert len(inner) == len(outer)  # the whole quarter of the inner wall, x = 0 to y = 0
+    assert inner[0, 0] == pytest.approx(0.0, abs=1e-9) and inner[-1, 1] == pytest.approx(0.0)
+    wall = np.hypot(*(outer - inner).T)  # the wall keeps about its thickness
+    assert np.all(np.abs(wall / SPEC.thickness_mm - 1) < 0.25)
     # along the axis the top line rises back towards the undeformed radius away from the jaw
     top = np.asarray(last["top_zy_mm"])
     assert top[0, 1] == pytest.approx(0.5 * last["gap_mm"], abs=1e-6)
