@@ -271,6 +271,7 @@ def _add_simulate_parser(sub) -> None:
         help="augmented model of 'grasprom diagnose': render its instrument effects; sensor "
         "offset/gain and latency go to a column force_handle_measured_N",
     )
+    _add_rendering_option(m)
     _add_surrogate_source(m)
     m.add_argument("--out", required=True, metavar="CSV", help="simulation output CSV")
 
@@ -337,6 +338,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             over["thickness_mm"] = args.thickness
         if args.material is not None:
             over["material"] = args.material
+        if args.rendering is not None:
+            over["rendering"] = args.rendering
         params = dataclasses.replace(params, **over)
         try:
             traj = pd.read_csv(args.trajectory)
@@ -437,6 +440,8 @@ def _cmd_report(args: argparse.Namespace) -> int:
         return _error("report", exc)
     print(files.text)
     print(f"\nwrote {files.table_csv} and {files.plot_png}")
+    if files.section_pngs:
+        print(f"wrote {len(files.section_pngs)} deformed-section figures (sections_*.png)")
     return 0
 
 
@@ -496,7 +501,7 @@ def _cmd_surrogate(args: argparse.Namespace) -> int:
 def _add_tune_parser(sub) -> None:
     t = sub.add_parser(
         "tune",
-        help="choose coupling stiffness, damping and velocity filter for passivity",
+        help="choose the stiffness bound, damping and velocity filter for passivity",
         description="Passivity tuning of the impedance controller over theta x thickness x "
         "material (Colgate, Abbott-Okamura, Z-width, python-control poles/margins, "
         "simulation check). Writes controller.json, tuning.json, tuning.txt and plots.",
@@ -534,14 +539,14 @@ def _add_tune_parser(sub) -> None:
 
 
 def _add_rendering_option(p: argparse.ArgumentParser) -> None:
-    """``--rendering {coupling,clipped}`` (default: the controller's, else coupling)."""
+    """``--rendering {coupling,clipped}`` (default: the controller's, else clipped)."""
     p.add_argument(
         "--rendering",
         choices=("coupling", "clipped"),
         default=None,
         help="tissue rendering: coupling (virtual coupling k_c in series) or clipped (the "
         "tissue's own force wherever it is softer than the passive bound K_lim, the stiffest "
-        "passive wall beyond); default: that of --controller, else coupling",
+        "passive wall beyond); default: that of --controller, else clipped",
     )
 
 
@@ -742,9 +747,10 @@ def _add_build_parser(sub) -> None:
     b.add_argument(
         "--rendering",
         choices=("coupling", "clipped"),
-        default="coupling",
-        help="tissue rendering of the tuned controller (default coupling; clipped needs the "
-        "C core and Arduino build that render it)",
+        default="clipped",
+        help="tissue rendering of the tuned controller: clipped (default: the tissue's own "
+        "force wherever it is softer than the passive bound, the stiffest passive wall beyond) "
+        "or coupling (virtual coupling k_c in series, the earlier scheme)",
     )
 
 

@@ -71,10 +71,13 @@ from grasprom.control.passivity import (
 from grasprom.control.plots import plot_transparency, plot_tuning
 from grasprom.control.report import format_report
 from grasprom.control.stiffness import (
+    FieldStiffness,
     OperatingPoints,
     StiffestPoint,
     clipped_field,
     clipped_stiffness_bound_Nm_per_rad,
+    field_stiffness_extremes,
+    operating_cases,
     operating_points,
     prony_stiffness_factor,
     rendered_stiffness,
@@ -146,6 +149,9 @@ __all__ = [
     "plot_tuning",
     "prony_stiffness_factor",
     "rendered_stiffness",
+    "FieldStiffness",
+    "field_stiffness_extremes",
+    "operating_cases",
     "required_damping",
     "save_device",
     "save_params",

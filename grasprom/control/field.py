@@ -26,11 +26,15 @@ in the handle angle over the chain's range, ``theta_j = theta_lo + j dtheta``:
    interpolates it linearly at the chain angle and renders ``Fi = Fr a + S`` as the coupling
    scheme renders its coupled jaw force (Prony series, friction, spring and damping on top).
 
-Every slope of the piecewise-linear field is bounded by ``K_g`` (unless ``K_g`` is below the
+Every node-to-node slope of the track is bounded by ``K_g`` (unless ``K_g`` is below the
 return spring's own handle stiffness, which no passive rendering of the spring can meet), so the
 sampled-data passivity condition of the tuner, ``b > K T/2 + |B|`` (Colgate & Schenkel 1997;
 for a nonlinear static environment with slopes in ``[-K, K]``: Miller, Colgate & Freeman 2000),
-holds with ``K = K_lim``.  Lengths mm, forces N, angles rad inside.
+holds with ``K = K_lim`` up to two things the tuner checks on the rendered slopes
+(:func:`grasprom.control.stiffness.field_stiffness_extremes`): the table is linear in the *jaw*
+force, so inside an interval the handle force ``Fr a + S`` departs from the chord by the chain's
+curvature (its slope up to ~0.04 % above ``K_lim`` at the closed end), and where the field
+renders the spring alone its slope is the spring's.  Lengths mm, forces N, angles rad inside.
 
 The table is built with scalar Python floats in the order written above: the C core of the
 FMU builds the same table in ``gc_init`` operation for operation (tests compare them).

@@ -144,11 +144,11 @@ class ControllerParams:
     prony_tau_s : tuple of float
         Relaxation times ``tau_i`` (s, > 0), as many as ``prony_g``.
     rendering : str
-        How the tissue is rendered: ``"coupling"`` (a virtual coupling ``k_c`` in series with
-        the tissue, solved for a proxy gap each step) or ``"clipped"`` (the tissue's own
-        force-angle curve wherever its handle stiffness is below ``stiffness_limit_Nm_per_rad``
-        and the stiffest passive wall beyond, tabulated along the angle:
-        :mod:`grasprom.control.field`).
+        How the tissue is rendered: ``"clipped"`` (default: the tissue's own force-angle curve
+        wherever its handle stiffness is below ``stiffness_limit_Nm_per_rad`` and the stiffest
+        passive wall beyond, tabulated along the angle: :mod:`grasprom.control.field`) or
+        ``"coupling"`` (the earlier scheme: a virtual coupling ``k_c`` in series with the
+        tissue, solved for a proxy gap each step; it softens even the soft regime).
     stiffness_limit_Nm_per_rad : float
         ``K_lim`` of the clipped rendering: the largest handle stiffness rendered (N m/rad at
         the pivot, > 0).  Default 6.2: the passive bound of the default device (b = 0.01 N m s/rad
@@ -205,7 +205,7 @@ class ControllerParams:
     friction_velocity_threshold_mm_per_s: float = 2.0
     prony_g: tuple[float, ...] = ()
     prony_tau_s: tuple[float, ...] = ()
-    rendering: str = "coupling"
+    rendering: str = "clipped"
     stiffness_limit_Nm_per_rad: float = 6.2
     passivity_observer: bool = False
     observer_stiffness_factor: float = 5.0

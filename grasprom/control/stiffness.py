@@ -14,11 +14,22 @@ renders, linearised at an operating point, ``tau = tau0 - K (theta - theta0) - B
 * the torque computed from sample ``k`` is held (zero-order hold) and applied ``delay`` samples
   later (one-sample computation delay by default).
 
+With the clipped rendering (:mod:`grasprom.control.field`) ``K`` is the slope of the field the
+controller renders, ``Fi = Fr(theta) a(theta) + S(theta)`` with ``Fr`` linear between the
+field's nodes: on the node interval holding ``theta``,
+``K = -L3 1e-3 [P Fr' a + Fr a' + S']`` (``Fr'`` the interval's slope, ``P`` the Prony factor).
+It is the tissue's where the field follows the tissue, ``K_lim`` (to the chain's curvature
+inside an interval, ~0.04 %) where the field climbs at the bound -- also where the tissue is
+already softer again but the field has not yet rejoined it -- and the spring's own where the
+field renders the spring alone.
+
 :func:`rendered_stiffness` gives ``K`` along ``theta`` for one material and thickness
 (:class:`OperatingPoints`), :func:`operating_points` over the whole grid and
-:func:`stiffest_point` the largest of them; :func:`static_handle_torque_Nm` is the ideal static
-field.  Rendered instrument effects enter through :func:`prony_stiffness_factor` (on ``k_eff``)
-and :func:`virtual_damping_Nms_per_rad` (on ``B``); see :mod:`grasprom.control.tuning`.
+:func:`stiffest_point` the largest of them; :func:`field_stiffness_extremes` the extremes of
+the clipped field over every node interval; :func:`static_handle_torque_Nm` is the ideal
+static field.  Rendered instrument effects enter through :func:`prony_stiffness_factor` (on
+``k_eff``) and :func:`virtual_damping_Nms_per_rad` (on ``B``); see
+:mod:`grasprom.control.tuning`.
 """
 
 from __future__ import annotations
@@ -32,16 +43,19 @@ from typing import NamedTuple
 import numpy as np
 
 from grasprom.chain import kinematics as kin
-from grasprom.control.field import Field, jaw_stiffness_limit_N_per_mm, prony_factor
+from grasprom.control.field import Field, prony_factor
 from grasprom.control.impedance import ImpedanceController
 from grasprom.control.params import ControllerParams
 from grasprom.surrogate import Surrogate
 
 __all__ = [
+    "FieldStiffness",
     "OperatingPoints",
     "StiffestPoint",
     "clipped_field",
     "clipped_stiffness_bound_Nm_per_rad",
+    "field_stiffness_extremes",
+    "operating_cases",
     "operating_points",
     "prony_stiffness_factor",
     "rendered_stiffness",
@@ -71,11 +85,15 @@ def clipped_field(s: Surrogate, params: ControllerParams) -> Field:
 
 
 def clipped_stiffness_bound_Nm_per_rad(params: ControllerParams) -> float:
-    """Largest instantaneous handle stiffness of the clipped rendering, N m/rad at the pivot.
+    """Bound on the clipped field's handle slope from its limit, N m/rad at the pivot.
 
-    The field's slopes are bounded by ``K_lim / (1 + sum g_i)`` (relaxed); the rendered Prony
-    series multiplies the jaw part by at most :func:`prony_stiffness_factor`, so the bound is
-    ``K_lim P / (1 + sum g_i)`` (``K_lim`` without Prony terms).
+    The field's node-to-node slopes are bounded by ``K_lim / (1 + sum g_i)`` (relaxed); the
+    rendered Prony series multiplies the jaw part by at most :func:`prony_stiffness_factor`,
+    so the bound is ``K_lim P / (1 + sum g_i)`` (``K_lim`` without Prony terms).  It is not
+    the largest slope rendered: inside a node interval the slope differs from the chord by the
+    chain's curvature (``Fr a'``, ~0.04 % at the closed end), and where the limit is below the
+    return spring's own stiffness the field renders the spring alone, at the spring's slope
+    (:func:`field_stiffness_extremes` has the slopes the field renders).
 
     Parameters
     ----------
@@ -179,15 +197,18 @@ class OperatingPoints:
     theta_deg, gap_mm, proxy_gap_mm : ndarray
         Handle angle (deg), kinematic gap (mm), converged proxy gap (mm).
     force_jaw_N : ndarray
-        Rendered (relaxed) jaw force ``k_c,eff (g_p - g)``, N.
+        Rendered (relaxed) jaw force ``k_c,eff (g_p - g)``, N (clipped: the field's ``Fr``;
+        the proxy gap is then the gap).
     tissue_stiffness_N_per_mm : ndarray
         Surrogate stiffness (times ``tissue_scale``) at the kinematic gap (raw tissue), N/mm.
     jaw_stiffness_N_per_mm : ndarray
         Rendered instantaneous jaw stiffness
         ``P k_c,eff k_t(g_p) / (k_c,eff + k_t(g_p))``, N/mm (``P`` the
-        :func:`prony_stiffness_factor`; ``k_c,eff = k_c`` without jaw compliance).
+        :func:`prony_stiffness_factor`; ``k_c,eff = k_c`` without jaw compliance; clipped:
+        ``-P dFr/dgap`` of the field's node interval).
     K_Nm_per_rad : ndarray
-        Rendered stiffness at the handle pivot (chain + coupling), N m/rad.
+        Rendered stiffness at the handle pivot (chain + coupling, or the clipped field's
+        slope on its node interval), N m/rad.
     K_raw_Nm_per_rad : ndarray
         Stiffness the raw tissue (no coupling, no jaw compliance; scale and Prony factor
         included) would need at the handle pivot, N m/rad.
@@ -284,27 +305,114 @@ def _clipped_points(
     kt_raw: np.ndarray,
     K_raw: np.ndarray,
 ) -> OperatingPoints:
-    """Operating points of the clipped rendering: the field's force, ``min(K_raw, bound)``.
+    """Operating points of the clipped rendering: the field's force and its actual slope.
 
     ``th`` chain angles (deg), ``g`` gaps (mm), ``kt_raw`` tissue stiffness (N/mm), ``K_raw``
-    the tissue's handle stiffness (N m/rad).  The rendered stiffness is the tissue's where it
-    is below :func:`clipped_stiffness_bound_Nm_per_rad` and the bound beyond (the field's
-    slopes never exceed it); the jaw stiffness likewise against the bound mapped to the jaw.
+    the tissue's handle stiffness (N m/rad).  The rendered stiffness is the slope of the
+    field's handle force on the node interval holding each angle (:func:`_field_slopes`):
+    the tissue's where the field follows it, the limit where it climbs at the bound (also
+    while it rejoins a tissue that is already softer), the spring's where it renders the
+    spring alone; the jaw stiffness is the interval's ``-P dFr/dgap``.
     """
-    pf = prony_stiffness_factor(params)
-    kbound = clipped_stiffness_bound_Nm_per_rad(params)
-    jaw_bound = jaw_stiffness_limit_N_per_mm(params, th) * pf
+    f = clipped_field(s, params)
+    th_rad = np.radians(th)
+    fr, _clip = f.jaw_force_array(th_rad)
+    u = (th_rad - f.theta_lo_rad) / f.dtheta_rad
+    j = np.clip(np.floor(u).astype(np.int64), 0, len(f.force_jaw_N) - 2)
+    kjaw, K = _field_slopes(f, params, j, u - j, th)
     return OperatingPoints(
         material=params.material,
         thickness_mm=float(params.thickness_mm),
         theta_deg=th,
         gap_mm=g,
         proxy_gap_mm=g.copy(),
-        force_jaw_N=_field_jaw_force_N(s, params, th),
+        force_jaw_N=fr,
         tissue_stiffness_N_per_mm=kt_raw,
-        jaw_stiffness_N_per_mm=np.minimum(pf * kt_raw, jaw_bound),
-        K_Nm_per_rad=np.minimum(K_raw, kbound),
+        jaw_stiffness_N_per_mm=kjaw,
+        K_Nm_per_rad=K,
         K_raw_Nm_per_rad=K_raw,
+    )
+
+
+def _field_slopes(
+    f: Field, params: ControllerParams, j: np.ndarray, w: np.ndarray, th_deg: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Instantaneous jaw stiffness (N/mm) and handle stiffness (N m/rad) of the field ``f``.
+
+    On node interval ``j`` (int array) at the weight ``w`` in ``[0, 1]`` (chain angle
+    ``th_deg``, deg): the jaw force ``Fr = Fr_j + w (Fr_j+1 - Fr_j)`` is linear in the angle
+    with slope ``Fr' = (Fr_j+1 - Fr_j) / dtheta``, so the jaw stiffness is ``-P Fr' / g'`` and
+    the handle stiffness ``-L3 1e-3 d(Fr a + S)/dtheta`` the chain's
+    :func:`~grasprom.chain.kinematics.dhandle_force_dtheta_N_per_rad` of them (``P`` the
+    :func:`prony_stiffness_factor`; spring terms without ``render_spring``).
+    """
+    fr = np.asarray(f.force_jaw_N, dtype=float)
+    f0 = fr[j]
+    force = f0 + w * (fr[j + 1] - f0)
+    dfr = (fr[j + 1] - f0) / f.dtheta_rad  # N/rad
+    chain = params.chain_params
+    g1 = np.asarray(kin.dgap_dtheta_mm_per_rad(th_deg, chain), dtype=float)
+    kjaw = -prony_stiffness_factor(params) * dfr / g1
+    return kjaw, _handle_K(force, kjaw, th_deg, chain, params.render_spring)
+
+
+class FieldStiffness(NamedTuple):
+    """Extremes of the clipped field's handle stiffness (:func:`field_stiffness_extremes`).
+
+    Attributes
+    ----------
+    K_max_Nm_per_rad, K_min_Nm_per_rad : float
+        Largest and smallest slope over every node interval, N m/rad at the pivot.
+    theta_max_deg : float
+        Where the largest is (an end of its interval), deg.
+    spring_alone : bool
+        Whether the field renders the return spring alone there (zero jaw force at both nodes
+        of the interval): a lower limit does not soften it.
+    """
+
+    K_max_Nm_per_rad: float
+    K_min_Nm_per_rad: float
+    theta_max_deg: float
+    spring_alone: bool
+
+
+def field_stiffness_extremes(s: Surrogate, params: ControllerParams) -> FieldStiffness:
+    """Largest and smallest handle stiffness the clipped field of ``params`` renders.
+
+    The slope of :func:`rendered_stiffness` at both ends of each of the field's node intervals:
+    inside an interval it is smooth and nearly linear in the angle (it changes by at most
+    ~0.08 % across one, through the chain's ``a'``, ``a''`` and the spring's ``S''``; its
+    curvature is a further factor ``dtheta`` smaller), so the ends hold its extremes.  Every
+    slope the field renders, the return spring's where it renders the spring alone included,
+    not only at sampled angles.
+
+    Parameters
+    ----------
+    s : Surrogate
+    params : ControllerParams
+        Any rendering: the field is built as the clipped controller builds it (its limit is
+        ``field_stiffness_limit_Nm_per_rad``).
+
+    Returns
+    -------
+    FieldStiffness
+    """
+    p = replace(params, rendering="clipped")
+    f = clipped_field(s, p)
+    n = len(f.force_jaw_N)
+    deg = np.degrees(f.theta_lo_rad + f.dtheta_rad * np.arange(n))
+    deg[-1] = kin.theta_range_deg(p.chain_params)[1]  # the last node as the field builds it
+    j = np.arange(n - 1)
+    k_lo = _field_slopes(f, p, j, np.zeros(n - 1), deg[:-1])[1]
+    k_hi = _field_slopes(f, p, j, np.ones(n - 1), deg[1:])[1]
+    i_lo, i_hi = int(np.argmax(k_lo)), int(np.argmax(k_hi))
+    i, th = (i_lo, deg[i_lo]) if k_lo[i_lo] >= k_hi[i_hi] else (i_hi, deg[i_hi + 1])
+    fr = f.force_jaw_N
+    return FieldStiffness(
+        K_max_Nm_per_rad=float(max(k_lo[i_lo], k_hi[i_hi])),
+        K_min_Nm_per_rad=float(min(np.min(k_lo), np.min(k_hi))),
+        theta_max_deg=float(th),
+        spring_alone=bool(p.render_spring and fr[i] == 0.0 and fr[i + 1] == 0.0),
     )
 
 
@@ -336,14 +444,19 @@ def static_handle_torque_Nm(
     return fi * chain.L3_mm * 1e-3
 
 
-def operating_points(
+def operating_cases(
     s: Surrogate,
     params: ControllerParams,
     thicknesses: Sequence[float] | None = None,
     materials: Sequence[str] | None = None,
-    n_theta: int = 221,
-) -> list[OperatingPoints]:
-    """Operating points over theta x thickness x material (default: the surrogate's grids)."""
+) -> list[ControllerParams]:
+    """``params`` at every material x thickness (default: the surrogate's grids), checked.
+
+    Raises
+    ------
+    ValueError
+        A thickness outside the surrogate's range of its material.
+    """
     mats = list(materials) if materials else list(s.materials)
     out = []
     for m in mats:
@@ -355,9 +468,22 @@ def operating_points(
                     f"thickness {t} mm outside the surrogate's range [{lo:g}, {hi:g}] mm "
                     f"for material {m!r}"
                 )
-            p = replace(params, material=m, thickness_mm=float(t))
-            out.append(rendered_stiffness(s, p, n_theta=n_theta))
+            out.append(replace(params, material=m, thickness_mm=float(t)))
     return out
+
+
+def operating_points(
+    s: Surrogate,
+    params: ControllerParams,
+    thicknesses: Sequence[float] | None = None,
+    materials: Sequence[str] | None = None,
+    n_theta: int = 221,
+) -> list[OperatingPoints]:
+    """Operating points over theta x thickness x material (default: the surrogate's grids)."""
+    return [
+        rendered_stiffness(s, p, n_theta=n_theta)
+        for p in operating_cases(s, params, thicknesses, materials)
+    ]
 
 
 class StiffestPoint(NamedTuple):

@@ -180,7 +180,9 @@ def _k20(s: Surrogate, p: ControllerParams) -> float:
     below = (f > 0) & (f <= EXACT_UP_TO_N * (1 + 1e-9))
     if not np.any(below):
         return 0.0
-    k_raw = rendered_stiffness(s, replace(p, rendering="coupling"), th[below]).K_raw_Nm_per_rad
+    k_raw = rendered_stiffness(
+        s, replace(p, rendering="coupling", passivity_observer=False), th[below]
+    ).K_raw_Nm_per_rad
     return float(np.max(k_raw))
 
 

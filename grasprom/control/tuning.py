@@ -6,8 +6,14 @@ rendering, the largest coupling stiffness ``k_c`` whose rendered stiffness
 (:mod:`~grasprom.control.stiffness`) stays below it over theta x thickness x material, or, for
 the clipped rendering (``rendering = "clipped"``), the stiffness limit ``K_lim`` itself
 (:func:`clipped_limit`: the passive stiffness with the safety factor, the Prony instantaneous
-factor taken off, 2 significant digits rounded down; every slope of the clipped field is
-bounded by it, so ``b > K T/2 + |B|`` in its delay-aware form holds at every angle).  The
+factor taken off, 2 significant digits rounded down).  The clipped field bounds its node-to-node
+slopes by ``K_lim`` but renders more than that: inside a node interval the chain's curvature
+(~0.04 % above ``K_lim`` at the closed end), and the return spring's own slope wherever the limit
+is below it (the field then renders the spring alone).  So the limit is confirmed against every
+slope the fields of all cases render (:func:`~grasprom.control.stiffness.field_stiffness_extremes`
+on every node interval), lowered if the chain's curvature breaks the margin, and :func:`tune`
+raises when the spring alone is not passive (no limit is: a lower one renders more of the
+spring alone); ``b > K T/2 + |B|`` in its delay-aware form then holds at every angle.  The
 report tells the truth about the choice: closed-loop damping ratio and phase margin with the
 hand at every operating point against a stated target (:mod:`~grasprom.control.margins`), the
 transparency table per case with the damping / rate that would render the tissue exactly up
@@ -58,8 +64,11 @@ from grasprom.control.params import ControllerParams
 from grasprom.control.passivity import best_filter, required_damping
 from grasprom.control.report import format_report, jsonable
 from grasprom.control.stiffness import (
+    FieldStiffness,
     OperatingPoints,
     clipped_stiffness_bound_Nm_per_rad,
+    field_stiffness_extremes,
+    operating_cases,
     operating_points,
     prony_stiffness_factor,
     stiffest_point,
@@ -145,8 +154,11 @@ def tune(
        digits, rounded down) for which the largest rendered stiffness over theta x thickness
        x material stays ``<= K_pass``, i.e. the passivity margin ``b / b_required >= safety``
        at every operating point.  Clipped rendering: ``K_lim`` = :func:`clipped_limit` of
-       ``K_pass`` (the Prony instantaneous factor taken off); the rendered stiffness is then
-       ``min(tissue, K_lim)`` at every operating point.
+       ``K_pass`` (the Prony instantaneous factor taken off), confirmed against every slope
+       the fields render over thickness x material (the tissue's where the field follows
+       it, ``K_lim`` and the chain's curvature inside a node interval where it climbs at the
+       bound, the return spring's where it renders the spring alone) and lowered (2
+       significant digits) until ``b / b_required >= safety`` for all of them.
 
     Rendered instrument effects in ``base`` (tissue scale, jaw compliance, Prony series,
     friction; see the module docstring) are kept and accounted for: ``K`` uses the scaled tissue,
@@ -192,7 +204,9 @@ def tune(
     Raises
     ------
     ValueError
-        Bad arguments, or a rendered viscous friction that leaves no passive stiffness.
+        Bad arguments, a rendered viscous friction that leaves no passive stiffness, or a
+        return spring the device cannot render passively (no coupling stiffness / no
+        stiffness limit is passive).
     """
     base = base or ControllerParams()
     device = device or DeviceParams()
@@ -208,7 +222,8 @@ def tune(
     )
     search = None
     if base.rendering == "clipped":
-        params = replace(base, stiffness_limit_Nm_per_rad=clipped_limit(base, ch.k_pass))
+        k_lim = _passive_clipped_limit(s, base, thicknesses, materials, device, safety, ch)
+        params = replace(base, stiffness_limit_Nm_per_rad=k_lim)
     else:
         search = _CouplingSearch(s, base, thicknesses, materials, n_theta, device, safety, ch)
         params = replace(base, coupling_stiffness_N_per_mm=search.largest_passive_coupling())
@@ -261,6 +276,71 @@ def clipped_limit(params: ControllerParams, k_pass: float) -> float:
     float
     """
     return _round_down(k_pass * prony_factor(params.prony_g) / prony_stiffness_factor(params), 2)
+
+
+_LIMIT_TRIES = 12
+"""Largest number of ``K_lim`` values :func:`_passive_clipped_limit` tries (each lower)."""
+
+
+def _passive_clipped_limit(
+    s: Surrogate,
+    base: ControllerParams,
+    thicknesses: Sequence[float] | None,
+    materials: Sequence[str] | None,
+    device: DeviceParams,
+    safety: float,
+    ch: _DampingChoice,
+) -> float:
+    """Step 2 of :func:`tune` for the clipped rendering: ``K_lim`` (N m/rad) passive everywhere.
+
+    Starts at :func:`clipped_limit` of ``ch.k_pass`` and checks the largest and smallest slope
+    of the field of every case (:func:`~grasprom.control.stiffness.field_stiffness_extremes`,
+    the field at ``K_lim`` itself: with the passivity observer on the controller renders a
+    stiffer field and relies on the observer) against ``b / safety``; a ``K_lim`` that fails
+    through the chain's curvature is lowered by the ratio of the passive stiffness to the
+    largest slope, rounded down to 2 significant digits (at least one unit of the second).
+
+    Raises
+    ------
+    ValueError
+        The largest slope is where the field renders the return spring alone (a lower limit
+        cannot soften it), or no ``K_lim`` of :data:`_LIMIT_TRIES` passes.
+    """
+    T, d, b = base.sample_time_s, device.delay_samples, device.damping_Nms_per_rad
+    cases = operating_cases(s, replace(base, passivity_observer=False), thicknesses, materials)
+    k_next = clipped_limit(base, ch.k_pass)
+    for _ in range(_LIMIT_TRIES):
+        k = k_next
+        worst: tuple[float, FieldStiffness, ControllerParams] | None = None
+        for p in cases:
+            e = field_stiffness_extremes(s, replace(p, stiffness_limit_Nm_per_rad=k))
+            kk = np.array([e.K_max_Nm_per_rad, e.K_min_Nm_per_rad])
+            req = max(float(required_damping(kk, ch.B, T, ch.fc, d).max()), 0.0)
+            if worst is None or req > worst[0]:
+                worst = (req, e, p)
+        assert worst is not None
+        req, e, p = worst
+        if req <= b / safety:
+            return k
+        if e.spring_alone:
+            raise ValueError(
+                f"no stiffness limit is passive: the clipped field renders the return spring "
+                f"alone at {p.material} {p.thickness_mm:g} mm, theta = {e.theta_max_deg:.2f} deg, "
+                f"with its slope {e.K_max_Nm_per_rad:.3g} N m/rad, which needs b >= "
+                f"{req * safety:.3g} N m s/rad ({req:.3g} without the safety {safety:g}; virtual "
+                f"damping {ch.B:.3g} N m s/rad incl. {ch.B_visc:.3g} of viscous friction), the "
+                f"device has {b:g}; a lower K_lim renders more of the spring alone, not less: "
+                "raise the device damping or the rate, or leave the spring out of the rendering "
+                "(render_spring = false)"
+            )
+        # scaled to the passive stiffness; at least one unit of the 2nd significant digit lower
+        k_next = _round_down(k * min(ch.k_pass / e.K_max_Nm_per_rad, 0.999), 2)
+    raise ValueError(
+        f"no stiffness limit is passive: down to K_lim = {k:.3g} N m/rad the clipped field of "
+        f"{p.material} {p.thickness_mm:g} mm renders slopes {e.K_min_Nm_per_rad:.3g} .. "
+        f"{e.K_max_Nm_per_rad:.3g} N m/rad, which need b >= {req * safety:.3g} N m s/rad (safety "
+        f"{safety:g}), the device has {b:g}"
+    )
 
 
 def _truth(

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import shutil
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -81,7 +82,7 @@ class Handle:
     def from_params(
         cls, params: ControllerParams, device: DeviceParams, hand: HandParams | None
     ) -> Handle:
-        """Handle of the chain of ``params`` with ``device`` and, if given, the ``hand``.
+        """Handle of the chain of ``params`` with ``device`` and, if given, the finger mass.
 
         Parameters
         ----------
@@ -90,7 +91,8 @@ class Handle:
         device : DeviceParams
             Handle inertia (kg m^2) and damping (N m s/rad).
         hand : HandParams or None
-            Finger mass (kg) and damping (N s/m) at the grip, reflected to the pivot.
+            The finger mass (kg) at the grip is reflected to the pivot (``J_h = m L3^2``); the
+            finger's stiffness and damping act through :class:`OperatorGrip`.
 
         Returns
         -------
@@ -99,8 +101,7 @@ class Handle:
         chain = params.chain_params
         J, b = device.inertia_kg_m2, device.damping_Nms_per_rad
         if hand is not None:
-            J_h, b_h, _k_h = hand.at_pivot(chain.L3_mm)
-            J, b = J + J_h, b + b_h
+            J = J + hand.at_pivot(chain.L3_mm)[0]
         return cls(
             grip_radius_m=chain.L3_mm * 1e-3,
             theta_closed_rad=math.radians(chain.theta_closed_deg),
@@ -110,18 +111,27 @@ class Handle:
         )
 
     def advance(
-        self, theta: float, omega: float, f_handle: float, f_hand: float, dt: float, substeps: int
-    ) -> tuple[float, float]:
-        """``substeps`` semi-implicit Euler steps of ``dt`` s with the forces held.
+        self,
+        theta: float,
+        omega: float,
+        f_handle: float,
+        hand: Callable[[float, float, float], float],
+        t: float,
+        dt: float,
+        substeps: int,
+    ) -> tuple[float, float, float]:
+        """``substeps`` semi-implicit Euler steps of ``dt`` s with the rendered force held.
 
         Parameters
         ----------
         theta, omega : float
             Handle angle (rad) and angular velocity (rad/s) at the start.
         f_handle : float
-            Rendered handle force pushing the handle open, N.
-        f_hand : float
-            Hand force squeezing it, N.
+            Rendered handle force pushing the handle open, N (held: zero-order hold).
+        hand : callable
+            ``hand(t, theta, omega)``: the hand's force squeezing the grip, N.
+        t : float
+            Time at the start, s.
         dt : float
             Integration step, s.
         substeps : int
@@ -129,23 +139,140 @@ class Handle:
 
         Returns
         -------
-        theta, omega : float
-            At the end, rad and rad/s (stopped at an end stop).
+        theta, omega, f_hand : float
+            At the end: rad, rad/s (stopped at an end stop) and the last hand force (N).
         """
         L3, J, b = self.grip_radius_m, self.inertia_kg_m2, self.damping_Nms_per_rad
         th_lo, th_hi = self.theta_closed_rad, self.theta_open_rad
-        for _ in range(substeps):
+        f_hand = 0.0
+        for i in range(substeps):
+            f_hand = hand(t + i * dt, theta, omega)
             omega += (L3 * (f_handle - f_hand) - b * omega) / J * dt
             theta += omega * dt
             if theta < th_lo or theta > th_hi:  # end stops
                 theta = min(max(theta, th_lo), th_hi)
                 omega = 0.0
-        return theta, omega
+        return theta, omega, f_hand
+
+
+def minimum_jerk(s: float) -> tuple[float, float]:
+    """Minimum-jerk profile (Flash & Hogan 1985) and its slope at the phase ``s`` (1, 1/1).
+
+    ``10 s^3 - 15 s^4 + 6 s^5`` on ``0 <= s <= 1``; 0 before, 1 after, slope 0 outside.
+    """
+    if s <= 0.0:
+        return 0.0, 0.0
+    if s >= 1.0:
+        return 1.0, 0.0
+    return s**3 * (10.0 - 15.0 * s + 6.0 * s * s), 30.0 * s * s * (1.0 - s) ** 2
+
+
+@dataclass(frozen=True)
+class OperatorGrip:
+    """The surgeon's hand as a position source behind the finger impedance (Thevenin model).
+
+    The hand intends a path ``theta*(t)`` of the handle (minimum jerk from the open stop to
+    ``theta_intent_rad`` over the ramp, held, minimum jerk back to the open stop over the
+    release) and pushes the grip through the finger stiffness and damping
+    (:class:`~grasprom.control.HandParams`, reflected to the pivot):
+    ``F_hand L3 = k_h (theta - theta*) + b_h (omega - omega*)``.  This is the classic
+    operator model of haptics (Hogan's position-controlled arm impedance): unlike a force source,
+    the handle cannot run away through the soft part of the stroke and slam into the tissue.
+    The intended end angle is chosen so that the hold force is ``peak_hand_N``
+    (:func:`operator_grip`).
+
+    Attributes
+    ----------
+    stiffness_Nm_per_rad, damping_Nms_per_rad : float
+        Finger stiffness and damping at the pivot, N m/rad and N m s/rad.
+    grip_radius_m : float
+        ``L3``, m.
+    theta_open_rad, theta_intent_rad : float
+        Start (open stop) and intended hold angle of the path, rad.
+    ramp_s, hold_s, release_s : float
+        Durations, s.
+    """
+
+    stiffness_Nm_per_rad: float
+    damping_Nms_per_rad: float
+    grip_radius_m: float
+    theta_open_rad: float
+    theta_intent_rad: float
+    ramp_s: float
+    hold_s: float
+    release_s: float
+
+    def intent(self, t: float) -> tuple[float, float]:
+        """Intended angle (rad) and angular velocity (rad/s) at time ``t`` (s)."""
+        span = self.theta_intent_rad - self.theta_open_rad
+        if t < self.ramp_s + self.hold_s:
+            s, ds = minimum_jerk(t / self.ramp_s)
+            return self.theta_open_rad + span * s, span * ds / self.ramp_s
+        s, ds = minimum_jerk((t - self.ramp_s - self.hold_s) / self.release_s)
+        return self.theta_intent_rad - span * s, -span * ds / self.release_s
+
+    def __call__(self, t: float, theta: float, omega: float) -> float:
+        """Force of the hand squeezing the grip (N) at ``t`` (s), ``theta`` (rad), rad/s."""
+        th_i, om_i = self.intent(t)
+        tau = self.stiffness_Nm_per_rad * (theta - th_i) + self.damping_Nms_per_rad * (omega - om_i)
+        return tau / self.grip_radius_m
+
+
+def static_handle_force_N(params: ControllerParams, surrogate: Surrogate, theta: float) -> float:
+    """Rendered handle force at rest at the angle ``theta`` (rad), N (fresh controller)."""
+    from grasprom.control import ImpedanceController
+
+    ctl = ImpedanceController(params, surrogate)
+    ctl.reset(theta)
+    return ctl.step(theta).force_handle_N
+
+
+def hold_angle_rad(
+    params: ControllerParams, surrogate: Surrogate, force_N: float, lo: float, hi: float
+) -> float:
+    """Handle angle (rad) in ``[lo, hi]`` where the rendered force at rest is ``force_N`` (N).
+
+    Bisection (the rendered force grows as the handle closes); ``lo`` if it never gets there.
+    """
+    if static_handle_force_N(params, surrogate, lo) < force_N:
+        return lo
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        if static_handle_force_N(params, surrogate, mid) > force_N:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+def operator_grip(
+    params: ControllerParams,
+    surrogate: Surrogate,
+    hand: HandParams,
+    handle: Handle,
+    peak_hand_N: float,
+    profile: tuple[float, float, float, float],
+) -> OperatorGrip:
+    """The :class:`OperatorGrip` whose hold force is ``peak_hand_N`` (N).
+
+    The hold angle ``theta_h`` is where the rendered force at rest equals ``peak_hand_N``;
+    the intent lies beyond it by the finger compression ``peak_hand_N L3 / k_h``.
+    """
+    _J, b_h, k_h = hand.at_pivot(params.chain_params.L3_mm)
+    if k_h <= 0.0:
+        raise ValueError("the operator grip needs a finger stiffness > 0 (HandParams)")
+    L3 = handle.grip_radius_m
+    th_h = hold_angle_rad(
+        params, surrogate, peak_hand_N, handle.theta_closed_rad, handle.theta_open_rad
+    )
+    ramp, hold, release, _rest = profile
+    return OperatorGrip(k_h, b_h, L3, handle.theta_open_rad, th_h - peak_hand_N * L3 / k_h,
+                        ramp, hold, release)  # fmt: skip
 
 
 def grasp_profile(fast: bool) -> tuple[float, float, float, float]:
     """Durations (ramp, hold, release, rest) of the grasp, s."""
-    return (0.4, 0.6, 0.3, 0.5) if fast else (1.0, 2.0, 0.5, 1.0)
+    return (0.7, 0.6, 0.3, 0.4) if fast else (1.0, 2.0, 0.5, 1.0)
 
 
 OVERSHOOT_TARGET = 0.15
@@ -197,15 +324,16 @@ def cosimulate(
     """Grasp-hold-release through an FMI 2 co-simulation FMU with fmpy.
 
     The handle is a rotational inertia ``J`` about its pivot with viscous friction ``b``
-    (``device``) and end stops at the chain's range, squeezed by the hand (force ``F_hand(t)``
-    at the grip radius ``L3``, plus the finger's mass and damping from ``hand``, reflected to the
-    pivot: ``J_h = m L3^2``, ``b_h = c L3^2``) and pushed open by the FMU's rendered handle force:
-    ``(J + J_h) theta'' = L3 (force_handle - F_hand) - (b + b_h) theta'``, integrated with
-    semi-implicit Euler at
-    ``substeps`` per controller step; the FMU is stepped at its sample time with the angle at
-    the communication point.  The Python
-    :class:`~grasprom.control.ImpedanceController` is
-    stepped on the same angles for comparison.
+    (``device``) and end stops at the chain's range, pushed open by the FMU's rendered handle
+    force and squeezed by the hand at the grip radius ``L3``:
+    ``(J + J_h) theta'' = L3 (force_handle - F_hand) - b theta'``, integrated with
+    semi-implicit Euler at ``substeps`` per controller step; the FMU is stepped at its sample
+    time with the angle at the communication point.  With ``hand`` the hand is the operator of
+    :class:`OperatorGrip` (a minimum-jerk intended path behind the finger stiffness and
+    damping, whose hold force is ``peak_hand_N``; ``J_h = m L3^2``); without it a pure force
+    source (:func:`hand_force_N`, cosine ramp), which lets the handle run through the soft
+    stroke and slam into the tissue.  The Python
+    :class:`~grasprom.control.ImpedanceController` is stepped on the same angles for comparison.
 
     Parameters
     ----------
@@ -218,10 +346,11 @@ def cosimulate(
     device : DeviceParams
         Handle inertia (kg m^2) and damping (N m s/rad).
     hand : HandParams, optional
-        Finger mass (kg) and damping (N s/m) at the grip; default none (a pure force source).
+        Finger mass (kg), damping (N s/m) and stiffness (N/m) at the grip; default none (a
+        pure force source).
     fast : bool
-        Shorter profile (ramp 0.4 s, hold 0.6 s, release 0.3 s, rest 0.5 s instead of
-        1 / 2 / 0.5 / 1 s).
+        Shorter profile (:func:`grasp_profile`: ramp 0.7 s, hold 0.6 s, release 0.3 s,
+        rest 0.4 s instead of 1 / 2 / 0.5 / 1 s).
     peak_hand_N : float
         Hold force of the hand at the grip, N.
     substeps : int
@@ -238,6 +367,7 @@ def cosimulate(
     T = params.sample_time_s
     n = int(round((ramp + hold + release + rest) / T))
     handle = Handle.from_params(params, device, hand)
+    grip = _grip(params, surrogate, hand, handle, peak_hand_N, (ramp, hold, release, rest))
     fmu, vr, unzip = _open_fmu2(fmu_path)
     ref = ImpedanceController(params, surrogate)
     out_vr = [vr[k] for k in FMU_OUTPUTS]
@@ -253,14 +383,32 @@ def cosimulate(
             fmu.doStep(t, T)
             torque, f_tissue, f_jaw, f_handle = fmu.getReal(out_vr)
             diff = max(diff, abs(torque - ref.step(theta).torque_Nm))
-            f_hand = hand_force_N(t, ramp, hold, release, peak_hand_N)
-            theta, omega = handle.advance(theta, omega, f_handle, f_hand, dt, substeps)
+            theta, omega, f_hand = handle.advance(theta, omega, f_handle, grip, t, dt, substeps)
             rec[k] = (t + T, math.degrees(theta), torque, f_tissue, f_jaw, f_handle, f_hand)
         fmu.terminate()
     finally:
         fmu.freeInstance()
         shutil.rmtree(unzip, ignore_errors=True)
     return CosimResult(rec, COLUMNS, diff, time.perf_counter() - t_wall)
+
+
+def _grip(
+    params: ControllerParams,
+    surrogate: Surrogate,
+    hand: HandParams | None,
+    handle: Handle,
+    peak_hand_N: float,
+    profile: tuple[float, float, float, float],
+) -> Callable[[float, float, float], float]:
+    """The hand's force at the grip, ``grip(t, theta, omega)`` (N): operator or force source."""
+    if hand is not None:
+        return operator_grip(params, surrogate, hand, handle, peak_hand_N, profile)
+    ramp, hold, release, _rest = profile
+
+    def force_source(t: float, _theta: float, _omega: float) -> float:
+        return hand_force_N(t, ramp, hold, release, peak_hand_N)
+
+    return force_source
 
 
 def _open_fmu2(fmu_path: str | Path) -> tuple[Any, dict[str, int], str]:

@@ -55,7 +55,7 @@ class BuildOptions:
         Device file (:func:`grasprom.control.load_device`): the tuning, exports and
         co-simulation use it (default the documented :class:`~grasprom.control.DeviceParams`).
     rendering : str
-        Tissue rendering of the tuned controller, ``"coupling"`` (default) or ``"clipped"``.
+        Tissue rendering of the tuned controller, ``"clipped"`` (default) or ``"coupling"``.
     """
 
     fe_dir: str | Path = "fe_data/default"
@@ -67,4 +67,4 @@ class BuildOptions:
     command_line: Sequence[str] | None = None
     augmented: str | Path | None = None
     device: str | Path | None = None
-    rendering: str = "coupling"
+    rendering: str = "clipped"

@@ -313,6 +313,12 @@ def _cosim_section(res: BuildResult) -> list[str]:
         return []
     parts = ["<h2>Co-simulated grasp</h2>"]
     parts.append(
+        "<p>The hand is the operator model of haptics: it intends a minimum-jerk closing of "
+        "the handle and pushes it through the finger's stiffness and damping (HandParams), "
+        "aiming at a hold force of 3 N; a pure force source would let the handle run through "
+        "the soft part of the stroke and slam into the tissue.</p>"
+    )
+    parts.append(
         f"<p>{len(cs.data)} steps at {1 / res.params.sample_time_s:g} Hz; min handle "
         f"angle {cs.col('theta_deg').min():.2f} deg, max jaw force "
         f"{cs.col('force_jaw_N').max():.2f} N, max motor torque "

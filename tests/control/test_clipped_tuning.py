@@ -56,7 +56,7 @@ def clipped(sur):
 @pytest.fixture(scope="module")
 def coupling(sur):
     kw = dict(materials=["mr", "le"], thicknesses=[0.8, 1.4, 2.0], n_theta=61, verify=False)
-    return tune(sur, ControllerParams(), **kw)
+    return tune(sur, ControllerParams(rendering="coupling"), **kw)
 
 
 # ------------------------------------------------------------------ passivity of the choice
@@ -71,8 +71,10 @@ def test_clipped_tuning_no_delay_meets_the_closed_form_colgate_condition(sur):
     b = dev.damping_Nms_per_rad
     assert b > colgate_required_damping(K, B, T)
     assert b / (K * T / 2 + abs(B)) >= r.summary["safety_factor"] * (1 - 1e-9)
-    # and the largest rendered stiffness over the cases is the limit itself
-    assert r.summary["max_rendered_K_Nm_per_rad"] == pytest.approx(K)
+    # and the largest rendered stiffness over the cases is the limit itself: the field's
+    # node-to-node slopes are bounded by it, inside an interval the chain's curvature adds
+    # up to ~3e-4 relative (the field is linear in jaw force, the handle force is not)
+    assert r.summary["max_rendered_K_Nm_per_rad"] == pytest.approx(K, rel=1e-3)
 
 
 def test_clipped_tuning_default_device(clipped):
@@ -86,7 +88,7 @@ def test_clipped_tuning_default_device(clipped):
                              p.sample_time_s, p.velocity_cutoff_Hz, 1)  # fmt: skip
     assert 1.25 * b_req <= clipped.device.damping_Nms_per_rad
     assert sm["chosen"]["rendering"] == "clipped"
-    assert all(o.K_Nm_per_rad.max() <= 6.2 + 1e-12 for o in clipped.points)
+    assert all(o.K_Nm_per_rad.max() <= 6.2 * (1 + 1e-3) for o in clipped.points)  # curvature
 
 
 def test_clipped_limit_accounts_for_prony_and_viscous_friction(sur):
@@ -185,7 +187,7 @@ def test_clipped_is_more_transparent_than_the_coupling_on_every_shipped_case(sur
     n = 0
     for material in sur.materials:
         for thickness in sur.thicknesses(material):
-            base = ControllerParams(material=material, thickness_mm=thickness)  # tuned k_c
+            base = ControllerParams(material=material, thickness_mm=thickness, rendering="coupling")
             coup = _ratios_from_simulate(sur, base)
             clip = _ratios_from_simulate(sur, replace(base, rendering="clipped"))
             case = (material, thickness)

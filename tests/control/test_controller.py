@@ -34,7 +34,9 @@ def _hold(ctl: ImpedanceController, theta_deg: float, n: int = 30):
 @pytest.mark.parametrize("material,t", [("mr", 1.4), ("le", 2.0), ("nh", 0.85)])
 def test_coupling_proxy_solves_the_series_spring_equation(surrogate, material, t):
     """At rest the proxy gap satisfies k_c (g_p - g) = F(g_p) (checked with brentq)."""
-    p = ControllerParams(thickness_mm=t, material=material, encoder_counts_per_rev=0)
+    p = ControllerParams(
+        thickness_mm=t, material=material, encoder_counts_per_rev=0, rendering="coupling"
+    )
     kc = p.coupling_stiffness_N_per_mm
     for theta in (15.0, 5.0, 2.0, 1.0, 0.5, 0.0):
         ctl = ImpedanceController(p, surrogate)
@@ -94,7 +96,11 @@ def test_velocity_filter_and_damping(surrogate):
 
 def test_saturation_warning_and_clamp_flags(surrogate):
     p = ControllerParams(
-        material="le", thickness_mm=2.0, coupling_stiffness_N_per_mm=200.0, torque_limit_Nm=0.2
+        material="le",
+        thickness_mm=2.0,
+        coupling_stiffness_N_per_mm=200.0,
+        torque_limit_Nm=0.2,
+        rendering="coupling",
     )
     ctl = ImpedanceController(p, surrogate)
     out = _hold(ctl, 0.0, 40)

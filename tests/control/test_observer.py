@@ -319,7 +319,7 @@ def test_the_observer_renders_more_of_the_tissue_at_20_N(wall):
 
 def test_observer_parameters_are_validated_and_saved(tmp_path):
     with pytest.raises(ValueError, match="passivity_observer=True needs rendering='clipped'"):
-        ControllerParams(passivity_observer=True)
+        ControllerParams(passivity_observer=True, rendering="coupling")
     for kw, match in (
         ({"observer_stiffness_factor": 0.9}, "observer_stiffness_factor must be finite and >= 1"),
         ({"observer_stiffness_factor": math.nan}, "observer_stiffness_factor"),

@@ -38,7 +38,7 @@ def sur() -> Surrogate:
 
 @pytest.fixture(scope="session")
 def tuned(sur) -> tuning.TuningResult:
-    return tuning.tune(sur)
+    return tuning.tune(sur, ControllerParams(rendering="coupling"))
 
 
 # ------------------------------------------------------------------ passivity conditions
@@ -74,16 +74,32 @@ def test_abbott_okamura():
 
 
 # ------------------------------------------------------------------ rendered stiffness
+@pytest.mark.parametrize("rendering", ["coupling", "clipped"])
 @pytest.mark.parametrize("material,thickness", [("le", 2.0), ("mr", 1.4), ("nh", 0.8)])
-def test_chain_stiffness_matches_controller_static_map(sur, material, thickness):
+def test_chain_stiffness_matches_controller_static_map(sur, material, thickness, rendering):
+    """K of rendered_stiffness = -d(torque)/d(theta) of ImpedanceController.step at rest
+    (central differences, h = 1e-5 rad), for both renderings.
+
+    Coupling: the linearisation through the converged proxy, to rel 2e-3.  Clipped: the slope
+    of the field on its node interval.  The field is linear in the jaw force between nodes
+    dtheta = 22 deg / 1024 = 3.75e-4 rad apart and the handle force Fr a + S smooth inside an
+    interval, so a stencil that stays inside one interval (asserted: every angle is more than
+    h from a node) differentiates one smooth piece and differs only by the O(h^2) truncation
+    (measured 1.2e-10 relative, 7e-10 N m/rad); rel 1e-6 / abs 1e-8 leave room for the
+    rounding of the torque difference (~1e-16 N m / 1e-5 rad).  A stencil across a node
+    would average the slopes of two intervals: off by up to half the slope jump at that node
+    (up to 0.44 N m/rad on these cases, mr 1.4 mm at 1.2 deg), hence angles clear of nodes.
+    """
     p = ControllerParams(
         material=material,
         thickness_mm=thickness,
         encoder_counts_per_rev=0,
         coupling_stiffness_N_per_mm=1.0,
+        rendering=rendering,
     )
     L3 = p.chain_params.L3_mm * 1e-3
     h = 1e-5
+    rel, tol = (2e-3, 1e-4) if rendering == "coupling" else (1e-6, 1e-8)
 
     def static_torque(th_rad: float) -> float:
         c = ImpedanceController(p, sur)
@@ -93,18 +109,38 @@ def test_chain_stiffness_matches_controller_static_map(sur, material, thickness)
         return out.force_handle_N * L3
 
     ths = np.array([0.3, 1.0, 3.0, 8.0, 15.0, 21.0])
+    if rendering == "clipped":
+        f = stiffness.clipped_field(sur, p)
+        u = (np.radians(ths) - f.theta_lo_rad) / f.dtheta_rad
+        clear = np.minimum(u - np.floor(u), np.ceil(u) - u) * f.dtheta_rad
+        assert np.all(clear > h), clear  # each stencil inside one node interval
     op = stiffness.rendered_stiffness(sur, p, ths)
     for th, K in zip(ths, op.K_Nm_per_rad):
         t = math.radians(th)
         fd = -(static_torque(t + h) - static_torque(t - h)) / (2 * h)
-        assert K == pytest.approx(fd, rel=2e-3, abs=1e-4), th
+        assert K == pytest.approx(fd, rel=rel, abs=tol), th
         assert stiffness.static_handle_torque_Nm(sur, p, np.array([t]))[0] == pytest.approx(
             static_torque(t), rel=1e-9, abs=1e-12
         )
-    # the coupling bounds the jaw stiffness; raw tissue is far stiffer at the closed end
-    assert np.all(op.jaw_stiffness_N_per_mm <= 1.0 + 1e-12)
     op0 = stiffness.rendered_stiffness(sur, p, [0.0])
-    assert op0.K_raw_Nm_per_rad[0] > 50 * op0.K_Nm_per_rad[0]
+    if rendering == "coupling":
+        # the coupling bounds the jaw stiffness; raw tissue is far stiffer at the closed end
+        assert np.all(op.jaw_stiffness_N_per_mm <= 1.0 + 1e-12)
+        assert op0.K_raw_Nm_per_rad[0] > 50 * op0.K_Nm_per_rad[0]
+        return
+    # clipped: the field climbs at the limit (to the chain's curvature) where the tissue is
+    # stiffer, and the raw tissue is far stiffer at the closed end
+    K_lim = p.stiffness_limit_Nm_per_rad
+    assert np.all(op.K_Nm_per_rad <= K_lim * (1 + 1e-3))
+    assert op0.K_Nm_per_rad[0] == pytest.approx(K_lim, rel=1e-3)
+    assert op0.K_raw_Nm_per_rad[0] > 1.1 * op0.K_Nm_per_rad[0]
+    if (material, thickness) == ("le", 2.0):
+        # 3 deg: the tissue (4.60 N m/rad) is softer than the limit again but the field is
+        # still climbing at the limit to rejoin it; the slope is the field's, not min(K_raw,
+        # K_lim) (which reported 4.60 against 6.20 from the static map)
+        i = int(np.flatnonzero(ths == 3.0)[0])
+        assert op.K_raw_Nm_per_rad[i] == pytest.approx(4.60, abs=0.01)
+        assert op.K_Nm_per_rad[i] == pytest.approx(6.20, abs=0.01)
 
 
 # ------------------------------------------------------------------ tuning
@@ -156,7 +192,15 @@ def test_zero_damping_on_low_damping_device_oscillates(sur, tuned):
     K = float(stiffness.rendered_stiffness(sur, p, [sim["theta_hold_deg"]]).K_Nm_per_rad[0])
     assert passivity.required_damping(K, 0.0, T, p.velocity_cutoff_Hz, 1) > dev.damping_Nms_per_rad
     # and the tuner, run for that device, picks a much softer coupling
-    r = tuning.tune(sur, device=dev, materials=["le"], thicknesses=[2.0], verify=False, n_theta=45)
+    r = tuning.tune(
+        sur,
+        ControllerParams(rendering="coupling"),
+        dev,
+        materials=["le"],
+        thicknesses=[2.0],
+        verify=False,
+        n_theta=45,
+    )
     assert r.params.coupling_stiffness_N_per_mm < 0.2 * tuned.params.coupling_stiffness_N_per_mm
 
 
@@ -220,6 +264,8 @@ def test_cli_tune_writes_outputs(sur, tmp_path, capsys):
             "le,mr",
             "--thickness",
             "1.0,2.0",
+            "--rendering",
+            "coupling",
             "--out",
             str(out),
         ]
@@ -254,6 +300,8 @@ def test_cli_tune_writes_outputs(sur, tmp_path, capsys):
             "2.0",
             "--rate-hz",
             "500",
+            "--rendering",
+            "coupling",
             "--no-plots",
             "--out",
             str(tmp_path / "t500"),
@@ -310,7 +358,7 @@ def test_bad_parameters():
 def test_augmentation_in_the_rendered_stiffness(sur):
     """Prony raises the jaw stiffness by the Nyquist gain of the Prony filter, the compliance
     puts k_c in series (k_c,eff), the scale multiplies the tissue."""
-    p0 = ControllerParams(material="le", thickness_mm=2.0)
+    p0 = ControllerParams(material="le", thickness_mm=2.0, rendering="coupling")
     ths = np.linspace(0.0, 22.0, 45)
     op0 = stiffness.rendered_stiffness(sur, p0, ths)
     pp = replace(p0, prony_g=(0.6, 0.4), prony_tau_s=(0.2, 1.0))
@@ -338,8 +386,10 @@ def test_tune_with_prony_halves_the_coupling(sur):
     """sum g = 1 doubles the instantaneous stiffness: the tuned k_c about halves, and the
     un-adjusted k_c would break the passivity margin."""
     kw = dict(materials=["le"], thicknesses=[2.0], verify=False, n_theta=45)
-    r0 = tuning.tune(sur, ControllerParams(), **kw)
-    rp = tuning.tune(sur, ControllerParams(prony_g=(1.0,), prony_tau_s=(1.0,)), **kw)
+    r0 = tuning.tune(sur, ControllerParams(rendering="coupling"), **kw)
+    rp = tuning.tune(
+        sur, ControllerParams(prony_g=(1.0,), prony_tau_s=(1.0,), rendering="coupling"), **kw
+    )
     kc0 = r0.params.coupling_stiffness_N_per_mm
     kcp = rp.params.coupling_stiffness_N_per_mm
     pf = stiffness.prony_stiffness_factor(rp.params)
@@ -366,7 +416,9 @@ def test_tune_counts_viscous_friction_as_virtual_damping(sur):
     kw = dict(materials=["le"], thicknesses=[2.0], verify=False, n_theta=45)
     L3 = ControllerParams().chain_params.L3_mm
     bv = 0.002  # N s/mm at the finger = 5.9e-3 N m s/rad at the pivot, 3x the tuned B
-    r = tuning.tune(sur, ControllerParams(friction_viscous_N_s_per_mm=bv), **kw)
+    r = tuning.tune(
+        sur, ControllerParams(friction_viscous_N_s_per_mm=bv, rendering="coupling"), **kw
+    )
     p = r.params
     Bv = bv * L3 * L3 * 1e-3
     assert stiffness.virtual_damping_Nms_per_rad(p) == pytest.approx(p.damping_Nms_per_rad + Bv)
@@ -376,19 +428,26 @@ def test_tune_counts_viscous_friction_as_virtual_damping(sur):
     b_req = passivity.required_damping(Kmax, p.damping_Nms_per_rad + Bv, T, p.velocity_cutoff_Hz, 1)
     assert b_req * r.summary["safety_factor"] <= r.device.damping_Nms_per_rad * (1 + 1e-9)
     assert r.summary["required_damping_Nms_per_rad"] == pytest.approx(b_req, rel=1e-9)
-    # ignoring it: the plain tuning (the defaults: k_c 0.95, B 1.87e-3, 200 Hz) plus this
+    # ignoring it: the plain coupling tuning (the defaults: k_c 0.95, B 1.87e-3, 200 Hz) plus this
     # friction needs more damping than the device has
-    d0 = ControllerParams(material="le", thickness_mm=2.0)
+    d0 = ControllerParams(material="le", thickness_mm=2.0, rendering="coupling")
     K0 = float(stiffness.rendered_stiffness(sur, d0, n_theta=45).K_Nm_per_rad.max())
     assert passivity.required_damping(K0, d0.damping_Nms_per_rad + Bv, T, 200.0, 1) > (
         r.device.damping_Nms_per_rad
     )
     assert "counted" in r.report()
     with pytest.raises(ValueError, match="cannot be rendered passively"):
-        tuning.tune(sur, ControllerParams(friction_viscous_N_s_per_mm=0.5), **kw)
+        tuning.tune(
+            sur, ControllerParams(friction_viscous_N_s_per_mm=0.5, rendering="coupling"), **kw
+        )
     # a device that cannot even render the spring: an error, not an endless k_c search
     with pytest.raises(ValueError, match="no coupling stiffness is passive"):
-        tuning.tune(sur, ControllerParams(), device.DeviceParams(damping_Nms_per_rad=1e-5), **kw)
+        tuning.tune(
+            sur,
+            ControllerParams(rendering="coupling"),
+            device.DeviceParams(damping_Nms_per_rad=1e-5),
+            **kw,
+        )
 
 
 def test_cli_tune_augmented(sur, tmp_path, capsys):
@@ -407,6 +466,7 @@ def test_cli_tune_augmented(sur, tmp_path, capsys):
     }  # fmt: skip
     (tmp_path / "aug.json").write_text(json.dumps(aug))
     args = ["tune", "--surrogate", str(sj), "--material", "le", "--thickness", "2.0", "--no-plots"]
+    args += ["--rendering", "coupling"]
     assert main(args + ["--out", str(tmp_path / "plain")]) == 0
     assert main(args + ["--out", str(tmp_path / "aug"), "--augmented",
                         str(tmp_path / "aug.json")]) == 0  # fmt: skip

@@ -1,5 +1,8 @@
 """Parity of the C controller core (gcc, ctypes) with the Python reference: to 1e-9 for the
-coupling, bit-identical (``==``) for the clipped rendering and its field table."""
+coupling, bit-identical (``==``) for the clipped rendering (the default) and its field table.
+
+The general cases (:data:`CASES`) run with both renderings; :data:`CLIPPED_CASES` add limits and
+effects of the clipped field, :data:`OBSERVER_CASES` the passivity observer."""
 
 from __future__ import annotations
 
@@ -25,7 +28,7 @@ def _trajectories():
     return {"slow": slow, "fast": fast, "wiggle": wiggle, "edge": edge}
 
 
-CASES = [
+CASES = [  # each with rendering "coupling" (to 1e-9) and "clipped" (bit for bit)
     ("mr", 1.4, {}),  # on a grid node
     ("nh", 0.85, {"damping_Nms_per_rad": 0.02}),  # between nodes
     ("le", 1.95, {"coupling_stiffness_N_per_mm": 80.0, "torque_limit_Nm": 0.3}),
@@ -65,16 +68,23 @@ def test_gcc_is_available():
     assert shutil.which("gcc"), "gcc not found: install it (Debian: apt-get install gcc)"
 
 
+@pytest.mark.parametrize("rendering", ["coupling", "clipped"])
 @pytest.mark.parametrize("material,t,extra", CASES)
-def test_c_core_matches_python_reference(surrogate, tmp_path, material, t, extra):
-    p = ControllerParams(thickness_mm=t, material=material, **extra)
-    core = CCore(p, surrogate, tmp_path)
+def test_c_core_matches_python_reference(surrogate, core, material, t, extra, rendering):
+    """Every output of every step on the parity trajectories, with either rendering: the
+    virtual coupling to 1e-9, the clipped field bit for bit (``==``)."""
+    p = ControllerParams(thickness_mm=t, material=material, rendering=rendering, **extra)
+    assert (ImpedanceController(p, surrogate).field is None) == (rendering == "coupling")
     for name, traj in _trajectories().items():
-        core.reset()
+        core.reset(p)
+        assert (core.field() is None) == (rendering == "coupling")
         ref = ImpedanceController(p, surrogate)
         for k, th_deg in enumerate(traj):
             a = core.step(math.radians(th_deg))
             b = ref.step(math.radians(th_deg))
+            if rendering == "clipped":
+                _assert_identical(a, b, (name, k))
+                continue
             for field, x, y in zip(a._fields, a, b):
                 if isinstance(y, bool):
                     assert x == y, (name, k, field)
@@ -106,8 +116,11 @@ def test_tables_are_exact_hex_literals(surrogate):
 
 
 def test_c_core_measured_velocity_matches_python(surrogate, tmp_path):
-    """gc_step_ext (damping on a measured velocity) against ImpedanceController.step(theta_dot)."""
-    p = ControllerParams(material="nh", thickness_mm=1.15, damping_Nms_per_rad=0.01)
+    """gc_step_ext (damping on a measured velocity) against ImpedanceController.step(theta_dot),
+    with the coupling (the clipped field: test_c_core_clipped_measured_velocity_is_bit_identical).
+    """
+    p = ControllerParams(material="nh", thickness_mm=1.15, damping_Nms_per_rad=0.01,
+                         rendering="coupling")  # fmt: skip
     core = CCore(p, surrogate, tmp_path)
     ref = ImpedanceController(p, surrogate)
     th = _trajectories()["fast"]
@@ -161,7 +174,7 @@ AUGMENTED = {
     "prony_tau_s": (0.2, 1.0),
 }
 
-CLIPPED_CASES = [
+CLIPPED_CASES = [  # each with rendering "coupling" (to 1e-9) and "clipped" (bit for bit)
     ("mr", 1.4, {}),  # on a grid node
     ("mr", 0.95, {"stiffness_limit_Nm_per_rad": 2.0, "damping_Nms_per_rad": 0.02}),
     ("le", 1.95, {"torque_limit_Nm": 0.3}),  # saturates
@@ -239,7 +252,8 @@ def test_c_core_clipped_measured_velocity_is_bit_identical(surrogate, core):
 
 def test_clipped_changes_the_output_and_coupling_has_no_field(surrogate, core):
     """Not trivial: the clipped field renders other forces than the coupling; with the coupling
-    the C core has no table and its outputs stay the coupling's (the parity tests above)."""
+    the C core has no table and its outputs stay the coupling's (the parity tests above:
+    test_c_core_matches_python_reference runs every case with either rendering)."""
     th = _trajectories()["slow"]
     out = {}
     for rendering in ("coupling", "clipped"):
@@ -251,7 +265,7 @@ def test_clipped_changes_the_output_and_coupling_has_no_field(surrogate, core):
 
 
 def test_c_core_checks_the_rendering_parameters(core):
-    p = ControllerParams()
+    p = ControllerParams(rendering="coupling")
     for field, value, match in (
         ("rendering", 2, "rendering must be 0 .coupling. or 1 .clipped."),
         ("rendering", -1, "rendering must be"),
@@ -271,7 +285,7 @@ def test_c_core_checks_the_rendering_parameters(core):
 def test_build_without_the_field_table_refuses_clipped(surrogate, tmp_path):
     """GC_FIELD_N = 0 (the AVR default: 2 KB of RAM) leaves the table out; the core then
     refuses the clipped rendering with a clear message and still runs the coupling."""
-    p = ControllerParams()
+    p = ControllerParams(rendering="coupling")
     small = CCore(p, surrogate, tmp_path, defines=("GC_FIELD_N=0",))
     with pytest.raises(ValueError, match="clipped.*needs the field table"):
         small.reset(dataclasses.replace(p, rendering="clipped"))

@@ -88,6 +88,9 @@ def _trajectories() -> dict[str, np.ndarray]:
 
 EDGE = np.array([22.0, 25.0, -3.0, np.nan, 0.0, np.inf, -np.inf, 10.0, np.nan, 0.0, 5.0])
 
+RENDERINGS = ("coupling", "clipped")
+"""The parity tests of :data:`CASES` run each case with both renderings (clipped: the default)."""
+
 CASES = [
     ("mr", 1.4, {}),  # on a grid node
     ("nh", 0.85, {"damping_Nms_per_rad": 0.02}),  # between nodes
@@ -112,8 +115,11 @@ CASES = [
 ]
 
 
-def _params(case) -> ControllerParams:
+def _params(case, rendering: str | None = None) -> ControllerParams:
+    """The case's parameters; ``rendering`` (if given) overrides the case's rendering."""
     material, t, extra = case
+    if rendering is not None:
+        extra = {**extra, "rendering": rendering}
     return ControllerParams(thickness_mm=t, material=material, **extra)
 
 
@@ -247,11 +253,16 @@ def _fmpy_worst(fmus, surrogate, params, versions=(2, 3)) -> float:
     return worst
 
 
+@pytest.mark.parametrize("rendering", RENDERINGS)
 @pytest.mark.parametrize("case", CASES, ids=[f"{m}-{t}" for m, t, _ in CASES])
-def test_fmpy_matches_python_reference(fmus, surrogate, case, record_property):
-    worst = _fmpy_worst(fmus, surrogate, _params(case))
+def test_fmpy_matches_python_reference(fmus, surrogate, case, rendering, record_property):
+    """FMI 2 and 3 through fmpy within REL of the reference, every case with either rendering
+    (the start value ``rendering`` selects it: 0 the coupling, 1 the clipped field)."""
+    params = _params(case, rendering)
+    assert (ImpedanceController(params, surrogate).field is None) == (rendering == "coupling")
+    worst = _fmpy_worst(fmus, surrogate, params)
     record_property("fmpy_max_rel_err", worst)
-    print(f"fmpy max relative error {worst:.3g}")
+    print(f"fmpy ({rendering}) max relative error {worst:.3g}")
 
 
 # the stiffness-clipped rendering (issue 13): the same FMUs with rendering = 1
@@ -333,6 +344,7 @@ def test_observer_parameters_are_checked(slaves, surrogate, version):
     s = slaves[version]
     assert s.instantiate()
     try:
+        assert s.set("rendering", 0) == 0  # the coupling
         assert s.set("passivity_observer", True) == 0
         assert s.set("observer_delay", 5) == 3
         assert s.enter() == 0
@@ -364,13 +376,16 @@ def test_observer_parameters_are_checked(slaves, surrogate, version):
         s.free()
 
 
+@pytest.mark.parametrize("rendering", RENDERINGS)
 @pytest.mark.parametrize("version", [2, 3])
-def test_c_driver_runs_the_binary_without_python(fmus, driver, surrogate, version):
+def test_c_driver_runs_the_binary_without_python(fmus, driver, surrogate, version, rendering):
+    """The C driver (dlopen, no Python) on the first three cases with either rendering, edge
+    angles included, within REL of the reference."""
     fmu = fmus[version]
     worst = 0.0
     trajs = _trajectories()
     for case in CASES[:3]:
-        params = _params(case)
+        params = _params(case, rendering)
         for name in ("fast", "wiggle"):
             th = np.radians(trajs[name])
             worst = max(worst, _max_rel_err(
@@ -379,7 +394,7 @@ def test_c_driver_runs_the_binary_without_python(fmus, driver, surrogate, versio
         th = np.radians(EDGE)  # NaN, inf, out of range: clamped as the reference does
         got = _run_driver(driver, fmu, version, fmu.binary, params, th)
         worst = max(worst, _max_rel_err(got, _reference_steps(params, surrogate, th)))
-    print(f"C driver (FMI {version}) max relative error {worst:.3g}")
+    print(f"C driver (FMI {version}, {rendering}) max relative error {worst:.3g}")
 
 
 @pytest.mark.parametrize("version", [2, 3])

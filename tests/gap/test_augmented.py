@@ -45,6 +45,7 @@ def _stiff_params(**kw) -> ControllerParams:
     base = dict(
         material="mr",
         thickness_mm=1.8,
+        rendering="coupling",
         coupling_stiffness_N_per_mm=1e5,
         damping_Nms_per_rad=0.0,
         encoder_counts_per_rev=0,

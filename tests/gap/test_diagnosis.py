@@ -272,8 +272,9 @@ def test_pair_and_report_schema(surrogate, tmp_path):
     assert set(m.effects) == {"mechanism_friction", "latency"}
     tr = d.preps[0].trial
     base = ControllerParams(thickness_mm=tr.thickness_mm, material=tr.material,
-                            coupling_stiffness_N_per_mm=1e5, damping_Nms_per_rad=0.0,
-                            encoder_counts_per_rev=0, torque_limit_Nm=100.0)  # fmt: skip
+                            rendering="coupling", coupling_stiffness_N_per_mm=1e5,
+                            damping_Nms_per_rad=0.0, encoder_counts_per_rev=0,
+                            torque_limit_Nm=100.0)  # fmt: skip
     p, info = gap.controller_params_from_augmented(base, m, surrogate)
     assert info["rendered"] == ["mechanism_friction"]
     assert info["measurement_only"] == ["latency"]

@@ -33,8 +33,33 @@ def test_handle_stops_at_the_closed_end():
     from grasprom.pipeline.cosim import Handle
 
     h = Handle(0.05, math.radians(1.0), math.radians(22.0), 1e-4, 1e-3)
-    theta, omega = h.advance(math.radians(2.0), 0.0, 0.0, 50.0, 1e-3, 100)
-    assert theta == h.theta_closed_rad and omega == 0.0
+    theta, omega, f = h.advance(math.radians(2.0), 0.0, 0.0, lambda t, th, om: 50.0, 0.0, 1e-3, 100)
+    assert theta == h.theta_closed_rad and omega == 0.0 and f == 50.0
+
+
+def test_minimum_jerk_profile():
+    from grasprom.pipeline.cosim import minimum_jerk
+
+    assert minimum_jerk(-1.0) == (0.0, 0.0) and minimum_jerk(2.0) == (1.0, 0.0)
+    assert minimum_jerk(0.5) == (0.5, 1.875)  # 10/8 - 15/16 + 6/32; slope 30/16
+    h = 1e-6  # slope = derivative of the profile (central difference)
+    for s in (0.1, 0.3, 0.77):
+        d = (minimum_jerk(s + h)[0] - minimum_jerk(s - h)[0]) / (2 * h)
+        assert minimum_jerk(s)[1] == pytest.approx(d, rel=1e-6)
+
+
+def test_operator_grip_is_a_spring_damper_behind_the_intended_path():
+    from grasprom.pipeline.cosim import OperatorGrip
+
+    g = OperatorGrip(2.0, 0.1, 0.05, 0.4, 0.1, ramp_s=1.0, hold_s=1.0, release_s=0.5)
+    assert g.intent(0.0) == (0.4, 0.0)
+    assert g.intent(1.5) == (pytest.approx(0.1), 0.0)
+    assert g.intent(3.0)[0] == pytest.approx(0.4)
+    th, om = g.intent(0.5)
+    assert th == pytest.approx(0.25) and om == pytest.approx(-0.3 * 1.875)
+    # at the hold, 0.05 rad ahead of the intent: F L3 = k (theta - theta*) = 2 * 0.05
+    assert g(1.5, 0.15, 0.0) == pytest.approx(2.0 * 0.05 / 0.05)
+    assert g(1.5, 0.1, -1.0) == pytest.approx(-0.1 / 0.05)  # damping opposes the motion
 
 
 def test_empty_build_result():

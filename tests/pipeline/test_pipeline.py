@@ -155,6 +155,19 @@ def test_report_names_and_embeds_figures(built):
     cs = meta["results"]["cosim"]
     assert cs["max_torque_diff_vs_python_Nm"] < 1e-9  # FMU = Python reference
     assert cs["max_force_jaw_N"] > 0.1 and cs["min_theta_deg"] < 10  # it did grasp
+    # issue 13: the grasp settles with <= 15 % overshoot, recomputed from cosim.csv
+    from grasprom.pipeline.cosim import grasp_profile
+
+    ramp, hold, _, _ = grasp_profile(True)
+    data = np.genfromtxt(out / "cosim.csv", delimiter=",", names=True)
+    t, f_handle, f_hand = data["time_s"], data["force_handle_N"], data["hand_N"]
+    last = (t >= ramp + 0.75 * hold) & (t <= ramp + hold)
+    settled = f_handle[last].mean()
+    assert f_handle[t <= ramp + hold].max() / settled - 1 <= 0.15
+    assert cs["settling"]["meets_target"] and cs["settling"]["overshoot"] <= 0.15
+    # the operator grip reaches its 3 N hold, in equilibrium with the rendered force
+    assert f_hand[last].mean() == pytest.approx(3.0, rel=0.02)
+    assert settled == pytest.approx(f_hand[last].mean(), rel=0.02)
     assert meta["results"]["surrogate"]["haptic_error"]["holdout"]["force_max_pct"] < 3
 
 
@@ -257,6 +270,7 @@ def test_thickness_out_of_range_names_surrogate_stage(tmp_path):
         ("tune_controller.py", [], "controller.json"),
         ("diagnose_gap.py", [], "diagnosis"),
         ("arduino_export.py", ["--fast"], "grasprom_controller"),
+        ("tube3d_vtu.py", ["--fast"], "tube_gap24.00.vtu"),
     ],
 )
 def test_example_runs(tmp_path, script, args, expect):

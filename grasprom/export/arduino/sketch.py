@@ -195,7 +195,7 @@ class ArduinoExport:
     table_bytes: int
     grid_nodes: dict[str, int]
     jaw_fs_N: float
-    rendering: str = "coupling"
+    rendering: str = "clipped"
     flash_B: int | None = None
     ram_B: int | None = None
     cycles_max: int | None = None

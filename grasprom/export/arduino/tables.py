@@ -8,9 +8,9 @@ encoder counts:
   material, on a dyadic grid per material (segment widths 2^k counts, chosen so that linear
   interpolation reproduces every curve within ``tol`` of the jaw-force full scale):
 
-  - ``"coupling"`` (default): through the virtual coupling, ``Fg = k_c (g_p - g)`` with the
+  - ``"coupling"``: through the virtual coupling, ``Fg = k_c (g_p - g)`` with the
     proxy ``g_p`` solved *to convergence* on the float surrogate;
-  - ``"clipped"``: the stiffness-clipped field of :mod:`grasprom.control.field` of the thickness
+  - ``"clipped"`` (default): the stiffness-clipped field of :mod:`grasprom.control.field` of the thickness
     node (``ImpedanceController(params at that thickness, surrogate).field``) at the count's
     angle, ``field.jaw_force_N(count * q)``;
 
