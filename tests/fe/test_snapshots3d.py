@@ -55,6 +55,7 @@ def test_plot_sections(run, tmp_path):
 
 def test_vtu_has_valid_hexahedra_and_the_displacements(run, tmp_path):
     import meshio
+
     disc = build_disc(SPEC)
     cells = disc.edofs[:, ::3] // 3
     u = run[2]

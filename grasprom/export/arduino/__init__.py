@@ -22,9 +22,9 @@ the 1,600-cycle budget, hence the default.  The tables:
   the largest jaw force the export renders); thickness is a run-time parameter, blended
   linearly between nodes at ``gf_init()``.  The curve is that of ``params.rendering``: with
   ``"coupling"`` the jaw force through the virtual coupling, ``Fg = k_c (g_p - g)``
-  with the proxy ``g_p`` solved *to convergence* on the float surrogate; with ``"clipped"`` (default) the
-  stiffness-clipped field of :mod:`grasprom.control.field` (the tissue's static force, slopes
-  bounded by the stiffness limit, no coupling) at the count's angle;
+  with the proxy ``g_p`` solved *to convergence* on the float surrogate; with ``"clipped"``
+  (default) the stiffness-clipped field of :mod:`grasprom.control.field` (the tissue's static
+  force, slopes bounded by the stiffness limit, no coupling) at the count's angle;
 * the chain on a uniform grid: ``a = g'(theta) / L3`` (handle force per jaw force) and the
   return-spring handle force;
 * the flag thresholds (tissue warning, coupling active) in counts per thickness node; with the

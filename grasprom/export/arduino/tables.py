@@ -10,9 +10,9 @@ encoder counts:
 
   - ``"coupling"``: through the virtual coupling, ``Fg = k_c (g_p - g)`` with the
     proxy ``g_p`` solved *to convergence* on the float surrogate;
-  - ``"clipped"`` (default): the stiffness-clipped field of :mod:`grasprom.control.field` of the thickness
-    node (``ImpedanceController(params at that thickness, surrogate).field``) at the count's
-    angle, ``field.jaw_force_N(count * q)``;
+  - ``"clipped"`` (default): the stiffness-clipped field of :mod:`grasprom.control.field` of
+    the thickness node (``ImpedanceController(params at that thickness, surrogate).field``)
+    at the count's angle, ``field.jaw_force_N(count * q)``;
 
 * the chain on a uniform grid: ``a = g'(theta) / L3`` and the return-spring handle force;
 * the flag thresholds (tissue warning; coupling active, which with the clipped rendering means
