@@ -86,6 +86,8 @@ int gf_state(const gf_instance_t *inst);
 int gf_unsupported(gf_instance_t *inst, const char *fn);
 
 int gf_enter_initialization(gf_instance_t *inst, const char *fn, double start_time);
+/* stop time of the experiment (instantiated state): a step past it is an error */
+int gf_set_stop_time(gf_instance_t *inst, const char *fn, int defined, double stop_time);
 int gf_exit_initialization(gf_instance_t *inst, const char *fn);
 int gf_do_step(gf_instance_t *inst, const char *fn, double t, double h);
 int gf_terminate(gf_instance_t *inst, const char *fn);
@@ -93,12 +95,27 @@ int gf_reset(gf_instance_t *inst, const char *fn);
 int gf_set_start_time(gf_instance_t *inst, const char *fn, double start_time);
 double gf_time(const gf_instance_t *inst);
 
-/* set/get: gf_access checks the state once per call (set: instantiated, initialization or step
- * mode; get: initialization, step, terminated or error state); then one value per element (as a
- * double); a rejected element is not stored.  Status = worst of the elements. */
+/* set/get: gf_access checks the state once per call (set = 1: instantiated, initialization or
+ * step mode; set = 0, FMI 2 get: initialization, step, terminated or error state; set = 2,
+ * FMI 3 get: those and instantiated); then one value per element (as a double); a rejected
+ * element is not stored.  Status = worst of the elements. */
 int gf_access(gf_instance_t *inst, const char *fn, int set);
 int gf_set_value(gf_instance_t *inst, const char *fn, int type, unsigned int vr, double value);
 int gf_get_value(gf_instance_t *inst, const char *fn, int type, unsigned int vr, double *value);
+
+/* FMU state (FMI 2 fmi2GetFMUstate ..., FMI 3 fmi3GetFMUState ...): a copy of the values, the
+ * time, the mode and the controller state.  gf_get_state allocates (alloc, calloc signature)
+ * or overwrites `reuse`; NULL on error (logged).  A serialized state is gf_state_size() bytes
+ * and is accepted only by the same FMU (instantiation token) of the same build. */
+size_t gf_state_size(void);
+void *gf_get_state(gf_instance_t *inst, const char *fn, void *reuse,
+                   void *(*alloc)(size_t, size_t));
+int gf_set_state(gf_instance_t *inst, const char *fn, const void *state);
+void gf_free_state(void *state, void (*dealloc)(void *));
+int gf_serialize_state(gf_instance_t *inst, const char *fn, const void *state,
+                       unsigned char *buf, size_t size);
+void *gf_deserialize_state(gf_instance_t *inst, const char *fn, const unsigned char *buf,
+                           size_t size, void *(*alloc)(size_t, size_t));
 
 #ifdef __cplusplus
 }

@@ -1,8 +1,8 @@
 /*
  * fmi2_wrapper.c: FMI 2.0 co-simulation interface of the grasprom controller FMU.
  * Translates the FMI 2 calls into the model layer (fmu_model.h); one fmi2Component is one
- * gf_instance_t.  Model exchange, FMU state, derivatives and asynchronous steps are not
- * supported (those calls return fmi2Error with a logged message).
+ * gf_instance_t.  Model exchange, derivatives and asynchronous steps are not supported (those
+ * calls return fmi2Error with a logged message); the FMU state can be got, set and serialized.
  */
 #include <stdio.h>
 #include <stdlib.h>
@@ -75,12 +75,13 @@ void fmi2FreeInstance(fmi2Component c) { gf_free(INST); }
 fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined,
                                fmi2Real tolerance, fmi2Real startTime,
                                fmi2Boolean stopTimeDefined, fmi2Real stopTime) {
+    int st;
     (void)toleranceDefined;
     (void)tolerance;
-    (void)stopTimeDefined;
-    (void)stopTime;
     NULL_GUARD(c);
-    return (fmi2Status)gf_set_start_time(INST, "fmi2SetupExperiment", startTime);
+    st = gf_set_start_time(INST, "fmi2SetupExperiment", startTime);
+    if (st != GF_OK) return (fmi2Status)st;
+    return (fmi2Status)gf_set_stop_time(INST, "fmi2SetupExperiment", stopTimeDefined, stopTime);
 }
 
 fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
@@ -257,43 +258,64 @@ fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2Stri
 
 /* ---------------------------------------------------------------- not supported */
 
+/* ---------------------------------------------------------------- FMU state */
+
+#define CALLBACKS ((const fmi2CallbackFunctions *)gf_wrapper_data(INST))
+
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
-    (void)FMUstate;
+    void *sn;
     NULL_GUARD(c);
-    return (fmi2Status)gf_unsupported(INST, "fmi2GetFMUstate");
+    if (!FMUstate) return (fmi2Status)gf_unsupported(INST, "fmi2GetFMUstate (NULL pointer)");
+    sn = gf_get_state(INST, "fmi2GetFMUstate", *FMUstate, CALLBACKS->allocateMemory);
+    if (!sn) return fmi2Error;
+    *FMUstate = sn;
+    return fmi2OK;
 }
 
 fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
-    (void)FMUstate;
     NULL_GUARD(c);
-    return (fmi2Status)gf_unsupported(INST, "fmi2SetFMUstate");
+    return (fmi2Status)gf_set_state(INST, "fmi2SetFMUstate", FMUstate);
 }
 
 fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
-    (void)FMUstate;
     NULL_GUARD(c);
-    return (fmi2Status)gf_unsupported(INST, "fmi2FreeFMUstate");
+    if (!FMUstate) return fmi2OK;
+    gf_free_state(*FMUstate, CALLBACKS->freeMemory);
+    *FMUstate = NULL;
+    return fmi2OK;
 }
 
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size) {
-    (void)FMUstate; (void)size;
+    (void)FMUstate;
     NULL_GUARD(c);
-    return (fmi2Status)gf_unsupported(INST, "fmi2SerializedFMUstateSize");
+    if (!size) return (fmi2Status)gf_unsupported(INST, "fmi2SerializedFMUstateSize (NULL)");
+    *size = gf_state_size();
+    return fmi2OK;
 }
 
 fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[],
                                  size_t size) {
-    (void)FMUstate; (void)serializedState; (void)size;
     NULL_GUARD(c);
-    return (fmi2Status)gf_unsupported(INST, "fmi2SerializeFMUstate");
+    return (fmi2Status)gf_serialize_state(INST, "fmi2SerializeFMUstate", FMUstate,
+                                          (unsigned char *)serializedState, size);
 }
 
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
                                    fmi2FMUstate *FMUstate) {
-    (void)serializedState; (void)size; (void)FMUstate;
+    void *sn;
     NULL_GUARD(c);
-    return (fmi2Status)gf_unsupported(INST, "fmi2DeSerializeFMUstate");
+    if (!FMUstate || !serializedState)
+        return (fmi2Status)gf_unsupported(INST, "fmi2DeSerializeFMUstate (NULL pointer)");
+    sn = gf_deserialize_state(INST, "fmi2DeSerializeFMUstate",
+                              (const unsigned char *)serializedState, size,
+                              CALLBACKS->allocateMemory);
+    if (!sn) return fmi2Error;
+    if (*FMUstate) gf_free_state(*FMUstate, CALLBACKS->freeMemory);
+    *FMUstate = sn;
+    return fmi2OK;
 }
+
+/* ---------------------------------------------------------------- not supported */
 
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[],
                                         size_t nUnknown, const fmi2ValueReference vKnown_ref[],

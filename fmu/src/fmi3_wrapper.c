@@ -48,9 +48,16 @@ fmi3Instance fmi3InstantiateCoSimulation(
     size_t nRequiredIntermediateVariables, fmi3InstanceEnvironment instanceEnvironment,
     fmi3LogMessageCallback logMessage, fmi3IntermediateUpdateCallback intermediateUpdate) {
     wrapper3_t w;
-    (void)resourcePath; (void)visible; (void)eventModeUsed; (void)earlyReturnAllowed;
+    (void)resourcePath; (void)visible; (void)earlyReturnAllowed;
     (void)requiredIntermediateVariables; (void)nRequiredIntermediateVariables;
     (void)intermediateUpdate;
+    if (eventModeUsed) { /* the modelDescription says hasEventMode="false" */
+        if (logMessage)
+            logMessage(instanceEnvironment, fmi3Error, "logStatusError",
+                       "fmi3InstantiateCoSimulation: eventModeUsed = true, but "
+                       GF_MODEL_IDENTIFIER " has no event mode (hasEventMode=\"false\")");
+        return NULL;
+    }
     w.env = instanceEnvironment;
     w.log = logMessage;
     return gf_new(instanceName, instantiationToken, logger3, loggingOn, calloc, free,
@@ -90,8 +97,13 @@ void fmi3FreeInstance(fmi3Instance instance) { gf_free(INST); }
 fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean toleranceDefined,
                                        fmi3Float64 tolerance, fmi3Float64 startTime,
                                        fmi3Boolean stopTimeDefined, fmi3Float64 stopTime) {
-    (void)toleranceDefined; (void)tolerance; (void)stopTimeDefined; (void)stopTime;
+    int st;
+    (void)toleranceDefined; (void)tolerance;
     NULL_GUARD();
+    st = gf_set_start_time(INST, "fmi3EnterInitializationMode", startTime);
+    if (st == GF_OK)
+        st = gf_set_stop_time(INST, "fmi3EnterInitializationMode", stopTimeDefined, stopTime);
+    if (st != GF_OK) return (fmi3Status)st;
     return (fmi3Status)gf_enter_initialization(INST, "fmi3EnterInitializationMode", startTime);
 }
 
@@ -117,7 +129,7 @@ fmi3Status fmi3Reset(fmi3Instance instance) {
     size_t i;                                                                            \
     double x;                                                                            \
     NULL_GUARD();                                                                        \
-    st = gf_access(INST, FN, 0);                                                         \
+    st = gf_access(INST, FN, 2); /* FMI 3: getters also in the Instantiated state */     \
     if (st > GF_WARNING) return (fmi3Status)st;                                          \
     if (nValues != nValueReferences) {                                                   \
         gf_log(INST, GF_ERROR, FN ": nValues %lu != nValueReferences %lu (no arrays)",   \
@@ -308,31 +320,51 @@ fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance instance) {
 }
 
 fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
-    (void)FMUState;
-    UNSUPPORTED("fmi3GetFMUState");
+    void *sn;
+    NULL_GUARD();
+    if (!FMUState) return (fmi3Status)gf_unsupported(INST, "fmi3GetFMUState (NULL pointer)");
+    sn = gf_get_state(INST, "fmi3GetFMUState", *FMUState, calloc);
+    if (!sn) return fmi3Error;
+    *FMUState = sn;
+    return fmi3OK;
 }
 fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState FMUState) {
-    (void)FMUState;
-    UNSUPPORTED("fmi3SetFMUState");
+    NULL_GUARD();
+    return (fmi3Status)gf_set_state(INST, "fmi3SetFMUState", FMUState);
 }
 fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
-    (void)FMUState;
-    UNSUPPORTED("fmi3FreeFMUState");
+    NULL_GUARD();
+    if (!FMUState) return fmi3OK;
+    gf_free_state(*FMUState, free);
+    *FMUState = NULL;
+    return fmi3OK;
 }
 fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUState FMUState,
                                       size_t *size) {
-    (void)FMUState; (void)size;
-    UNSUPPORTED("fmi3SerializedFMUStateSize");
+    (void)FMUState;
+    NULL_GUARD();
+    if (!size) return (fmi3Status)gf_unsupported(INST, "fmi3SerializedFMUStateSize (NULL)");
+    *size = gf_state_size();
+    return fmi3OK;
 }
 fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState FMUState,
                                  fmi3Byte serializedState[], size_t size) {
-    (void)FMUState; (void)serializedState; (void)size;
-    UNSUPPORTED("fmi3SerializeFMUState");
+    NULL_GUARD();
+    return (fmi3Status)gf_serialize_state(INST, "fmi3SerializeFMUState", FMUState,
+                                          (unsigned char *)serializedState, size);
 }
 fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte serializedState[],
                                    size_t size, fmi3FMUState *FMUState) {
-    (void)serializedState; (void)size; (void)FMUState;
-    UNSUPPORTED("fmi3DeserializeFMUState");
+    void *sn;
+    NULL_GUARD();
+    if (!FMUState || !serializedState)
+        return (fmi3Status)gf_unsupported(INST, "fmi3DeserializeFMUState (NULL pointer)");
+    sn = gf_deserialize_state(INST, "fmi3DeserializeFMUState",
+                              (const unsigned char *)serializedState, size, calloc);
+    if (!sn) return fmi3Error;
+    if (*FMUState) gf_free_state(*FMUState, free);
+    *FMUState = sn;
+    return fmi3OK;
 }
 
 fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance,

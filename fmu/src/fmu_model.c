@@ -23,6 +23,8 @@ struct gf_instance {
     int theta_warned;        /* an out-of-range theta was logged; log again once back in range */
     double v[GF_N_VARS];     /* variable values by value reference, SI */
     double t_start;          /* s */
+    double t_stop;           /* s, if stop_defined */
+    int stop_defined;        /* the importer set a stop time (setupExperiment / enterInit.) */
     unsigned long long n;    /* samples done since the start */
     gc_params_t p;           /* core parameters (mm, N, MPa), set at exit of initialization */
     gc_state_t s;
@@ -59,6 +61,8 @@ static void load_starts(gf_instance_t *inst) {
     inst->n = 0;
     inst->theta_warned = 0;
     inst->t_start = 0.0;
+    inst->t_stop = 0.0;
+    inst->stop_defined = 0;
     inst->v[GF_VR_time] = 0.0;
 }
 
@@ -122,7 +126,7 @@ int gf_check_state(gf_instance_t *inst, const char *fn, int allowed_mask) {
 }
 
 int gf_unsupported(gf_instance_t *inst, const char *fn) {
-    gf_log(inst, GF_ERROR, "%s: not supported by this FMU (co-simulation, no FMU state, "
+    gf_log(inst, GF_ERROR, "%s: not supported by this FMU (co-simulation, "
                            "no derivatives, no events)", fn);
     return GF_ERROR;
 }
@@ -138,10 +142,41 @@ int gf_set_start_time(gf_instance_t *inst, const char *fn, double start_time) {
     return GF_OK;
 }
 
+int gf_set_stop_time(gf_instance_t *inst, const char *fn, int defined, double stop_time) {
+    if (gf_check_state(inst, fn, GF_INSTANTIATED)) return GF_ERROR;
+    if (!defined) {
+        inst->stop_defined = 0;
+        return GF_OK;
+    }
+    if (!(isfinite(stop_time) && stop_time >= inst->t_start)) {
+        gf_log(inst, GF_ERROR, "%s: stop time %g s must be finite and >= the start time %g s",
+               fn, stop_time, inst->t_start);
+        return GF_ERROR;
+    }
+    inst->stop_defined = 1;
+    inst->t_stop = stop_time;
+    return GF_OK;
+}
+
 int gf_enter_initialization(gf_instance_t *inst, const char *fn, double start_time) {
     if (gf_set_start_time(inst, fn, start_time) != GF_OK) return GF_ERROR;
     inst->state = GF_INITIALIZATION;
     return GF_OK;
+}
+
+/* the outputs the controller gives for the current inputs, without advancing its state (so
+ * importers see the controller at the start angle, not the start values, before the first
+ * step; the steps themselves are unchanged) */
+static void preview_outputs(gf_instance_t *inst) {
+    gc_state_t s = inst->s;
+    gc_output_t o;
+    const gc_material_t *m = &GC_MATERIALS[inst->p.material];
+    if (inst->v[GF_VR_use_theta_dot] != 0.0)
+        gc_step_ext(&s, &inst->p, &GC_CHAIN, m, inst->v[GF_VR_theta], inst->v[GF_VR_theta_dot],
+                    &o);
+    else
+        gc_step(&s, &inst->p, &GC_CHAIN, m, inst->v[GF_VR_theta], &o);
+    gf_write_outputs(&o, inst->v);
 }
 
 int gf_exit_initialization(gf_instance_t *inst, const char *fn) {
@@ -176,6 +211,7 @@ int gf_exit_initialization(gf_instance_t *inst, const char *fn) {
     gc_build_field(&inst->s, &inst->p, &GC_CHAIN, &GC_MATERIALS[inst->p.material]);
     inst->n = 0;
     inst->v[GF_VR_time] = inst->t_start;
+    preview_outputs(inst);
     inst->state = GF_STEP;
     gf_log(inst, GF_OK, "%s: controller initialised, sample time %g s", fn, p.sample_time);
     return status;
@@ -208,7 +244,12 @@ int gf_do_step(gf_instance_t *inst, const char *fn, double t, double h) {
     now = inst->v[GF_VR_time];
     if (fabs(t - now) > 0.5 * T) {
         gf_log(inst, GF_ERROR, "%s: communication point %.17g s does not match the FMU time "
-                               "%.17g s (no rollback: FMU state not supported)", fn, t, now);
+                               "%.17g s (to go back, restore an FMU state)", fn, t, now);
+        return GF_ERROR;
+    }
+    if (inst->stop_defined && t + h > inst->t_stop + 1e-9 * fmax(1.0, fabs(inst->t_stop))) {
+        gf_log(inst, GF_ERROR, "%s: step from %.17g s by %g s goes past the stop time %.17g s",
+               fn, t, h, inst->t_stop);
         return GF_ERROR;
     }
     m = &GC_MATERIALS[inst->p.material];
@@ -251,9 +292,10 @@ int gf_reset(gf_instance_t *inst, const char *fn) {
 }
 
 int gf_access(gf_instance_t *inst, const char *fn, int set) {
-    return gf_check_state(inst, fn, set ? GF_INSTANTIATED | GF_INITIALIZATION | GF_STEP
-                                        : GF_INITIALIZATION | GF_STEP | GF_TERMINATED |
-                                              GF_ERROR_STATE);
+    int get = GF_INITIALIZATION | GF_STEP | GF_TERMINATED | GF_ERROR_STATE;
+    if (set == 2) get |= GF_INSTANTIATED; /* FMI 3 getters */
+    return gf_check_state(inst, fn, set == 1 ? GF_INSTANTIATED | GF_INITIALIZATION | GF_STEP
+                                             : get);
 }
 
 static const char *type_name(int type) {
@@ -346,4 +388,128 @@ int gf_get_value(gf_instance_t *inst, const char *fn, int type, unsigned int vr,
     if (lookup(inst, fn, type, vr)) return GF_ERROR;
     *x = inst->v[vr];
     return GF_OK;
+}
+
+/* ---------------------------------------------------------------------------------------- */
+/* FMU state: a copy of everything that evolves (values, time, core state, mode)            */
+
+#define GF_SNAPSHOT_MAGIC 0x47465331u /* "GFS1" */
+
+typedef struct {
+    unsigned int magic;
+    unsigned int size;       /* sizeof(gf_snapshot_t): a serialized state from another build
+                                of the FMU is rejected */
+    char token[64];          /* GF_TOKEN of the FMU that wrote it */
+    int state;
+    int theta_warned;
+    int stop_defined;
+    int material;            /* to re-point the core's material pointers after deserializing */
+    double v[GF_N_VARS];
+    double t_start, t_stop;
+    unsigned long long n;
+    gc_params_t p;
+    gc_state_t s;
+    gc_output_t o;
+} gf_snapshot_t;
+
+size_t gf_state_size(void) { return sizeof(gf_snapshot_t); }
+
+static void snap_store(const gf_instance_t *inst, gf_snapshot_t *sn) {
+    memset(sn, 0, sizeof *sn);
+    sn->magic = GF_SNAPSHOT_MAGIC;
+    sn->size = (unsigned int)sizeof *sn;
+    strncpy(sn->token, GF_TOKEN, sizeof sn->token - 1);
+    sn->state = inst->state;
+    sn->theta_warned = inst->theta_warned;
+    sn->stop_defined = inst->stop_defined;
+    sn->material = inst->p.material;
+    memcpy(sn->v, inst->v, sizeof sn->v);
+    sn->t_start = inst->t_start;
+    sn->t_stop = inst->t_stop;
+    sn->n = inst->n;
+    sn->p = inst->p;
+    sn->s = inst->s;
+    sn->o = inst->o;
+}
+
+static int snap_valid(gf_instance_t *inst, const char *fn, const gf_snapshot_t *sn) {
+    if (!sn || sn->magic != GF_SNAPSHOT_MAGIC || sn->size != sizeof *sn ||
+        strncmp(sn->token, GF_TOKEN, sizeof sn->token) != 0 || sn->material < 0 ||
+        sn->material >= GC_N_MATERIALS) {
+        gf_log(inst, GF_ERROR, "%s: not an FMU state of this FMU (%s)", fn, GF_TOKEN);
+        return 0;
+    }
+    return 1;
+}
+
+void *gf_get_state(gf_instance_t *inst, const char *fn, void *reuse,
+                   void *(*alloc)(size_t, size_t)) {
+    gf_snapshot_t *sn = (gf_snapshot_t *)reuse;
+    if (gf_check_state(inst, fn, GF_INSTANTIATED | GF_INITIALIZATION | GF_STEP | GF_TERMINATED))
+        return NULL;
+    if (!sn) sn = (gf_snapshot_t *)alloc(1, sizeof *sn);
+    if (!sn) {
+        gf_log(inst, GF_ERROR, "%s: out of memory", fn);
+        return NULL;
+    }
+    snap_store(inst, sn);
+    return sn;
+}
+
+int gf_set_state(gf_instance_t *inst, const char *fn, const void *state) {
+    const gf_snapshot_t *sn = (const gf_snapshot_t *)state;
+    const gc_material_t *m;
+    if (gf_check_state(inst, fn, GF_INSTANTIATED | GF_INITIALIZATION | GF_STEP | GF_TERMINATED))
+        return GF_ERROR;
+    if (!snap_valid(inst, fn, sn)) return GF_ERROR;
+    inst->state = sn->state;
+    inst->theta_warned = sn->theta_warned;
+    inst->stop_defined = sn->stop_defined;
+    memcpy(inst->v, sn->v, sizeof inst->v);
+    inst->t_start = sn->t_start;
+    inst->t_stop = sn->t_stop;
+    inst->n = sn->n;
+    inst->p = sn->p;
+    inst->s = sn->s;
+    inst->o = sn->o;
+    /* the core caches pointers to its material table: valid in this process only */
+    m = &GC_MATERIALS[sn->material];
+    if (inst->s.b_mat) inst->s.b_mat = m;
+    if (inst->s.f_mat) inst->s.f_mat = m;
+    return GF_OK;
+}
+
+void gf_free_state(void *state, void (*dealloc)(void *)) {
+    if (state) dealloc(state);
+}
+
+int gf_serialize_state(gf_instance_t *inst, const char *fn, const void *state,
+                       unsigned char *buf, size_t size) {
+    if (!snap_valid(inst, fn, (const gf_snapshot_t *)state)) return GF_ERROR;
+    if (size < sizeof(gf_snapshot_t)) {
+        gf_log(inst, GF_ERROR, "%s: buffer of %lu bytes, the state needs %lu", fn,
+               (unsigned long)size, (unsigned long)sizeof(gf_snapshot_t));
+        return GF_ERROR;
+    }
+    memcpy(buf, state, sizeof(gf_snapshot_t));
+    return GF_OK;
+}
+
+void *gf_deserialize_state(gf_instance_t *inst, const char *fn, const unsigned char *buf,
+                           size_t size, void *(*alloc)(size_t, size_t)) {
+    gf_snapshot_t tmp, *sn;
+    if (size != sizeof tmp) {
+        gf_log(inst, GF_ERROR, "%s: %lu bytes is not a serialized state of this FMU (%lu)", fn,
+               (unsigned long)size, (unsigned long)sizeof tmp);
+        return NULL;
+    }
+    memcpy(&tmp, buf, sizeof tmp);
+    if (!snap_valid(inst, fn, &tmp)) return NULL;
+    sn = (gf_snapshot_t *)alloc(1, sizeof *sn);
+    if (!sn) {
+        gf_log(inst, GF_ERROR, "%s: out of memory", fn);
+        return NULL;
+    }
+    *sn = tmp;
+    return sn;
 }

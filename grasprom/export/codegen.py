@@ -46,6 +46,8 @@ from grasprom.surrogate import Surrogate
 
 # ---------------------------------------------------------------------------------- sources
 MODEL_IDENTIFIER = "GraspController"
+FMU_LICENSE = "MIT (see LICENSE of grasprom)"
+"""``license`` of the modelDescription: the project's licence, which the FMU's code carries."""
 """Model identifier: name of the binary and of the FMI model."""
 
 FMI_VERSIONS = (2, 3)
@@ -416,7 +418,21 @@ def _type_attrs(v: Variable) -> str:
     return " ".join(attrs)
 
 
-def _md_head(fmi_version: int, token: str, description: str) -> list[str]:
+def generation_date_and_time() -> str:
+    """``generationDateAndTime`` (UTC, ISO 8601): ``SOURCE_DATE_EPOCH`` if set, else now.
+
+    ``SOURCE_DATE_EPOCH`` (reproducible-builds.org) makes two exports byte-identical.
+    """
+    import datetime as dt
+    import os
+
+    epoch = os.environ.get("SOURCE_DATE_EPOCH")
+    when = (dt.datetime.fromtimestamp(int(epoch), dt.timezone.utc) if epoch
+            else dt.datetime.now(dt.timezone.utc))  # fmt: skip
+    return when.replace(microsecond=0).strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def _md_head(fmi_version: int, token: str, description: str, step: float) -> list[str]:
     """Root element and ``<CoSimulation>`` of the modelDescription."""
     head = [
         '<?xml version="1.0" encoding="UTF-8"?>',
@@ -425,7 +441,11 @@ def _md_head(fmi_version: int, token: str, description: str) -> list[str]:
         f'  modelName="{MODEL_IDENTIFIER}"',
         (f'  guid="{token}"' if fmi_version == 2 else f'  instantiationToken="{token}"'),
         f"  description={quoteattr(description)}",
+        '  author="grasprom"',
+        f'  version="{__version__}"',
+        f'  license="{FMU_LICENSE}"',
         f'  generationTool="grasprom {__version__}"',
+        f'  generationDateAndTime="{generation_date_and_time()}"',
         '  variableNamingConvention="flat"',
     ]
     if fmi_version == 2:
@@ -436,8 +456,8 @@ def _md_head(fmi_version: int, token: str, description: str) -> list[str]:
             '    canHandleVariableCommunicationStepSize="true"',
             '    canInterpolateInputs="false" maxOutputDerivativeOrder="0"',
             '    canRunAsynchronuously="false" canBeInstantiatedOnlyOncePerProcess="false"',
-            '    canNotUseMemoryManagementFunctions="false" canGetAndSetFMUstate="false"',
-            '    canSerializeFMUstate="false" providesDirectionalDerivative="false">',
+            '    canNotUseMemoryManagementFunctions="false" canGetAndSetFMUstate="true"',
+            '    canSerializeFMUstate="true" providesDirectionalDerivative="false">',
             f"    <SourceFiles>{sources}\n    </SourceFiles>",
             "  </CoSimulation>",
         ]
@@ -445,8 +465,9 @@ def _md_head(fmi_version: int, token: str, description: str) -> list[str]:
     return head + [
         f'  <CoSimulation modelIdentifier="{MODEL_IDENTIFIER}"',
         '    canHandleVariableCommunicationStepSize="true" hasEventMode="false"',
-        '    canBeInstantiatedOnlyOncePerProcess="false" canGetAndSetFMUState="false"',
-        '    canSerializeFMUState="false" providesDirectionalDerivatives="false"',
+        f'    fixedInternalStepSize="{step!r}"',
+        '    canBeInstantiatedOnlyOncePerProcess="false" canGetAndSetFMUState="true"',
+        '    canSerializeFMUState="true" providesDirectionalDerivatives="false"',
         '    providesAdjointDerivatives="false" canReturnEarlyAfterIntermediateUpdate="false"',
         '    providesIntermediateUpdate="false" maxOutputDerivativeOrder="0"/>',
     ]
@@ -500,7 +521,7 @@ def model_description(
         raise ValueError(f"fmi_version must be 2 or 3, got {fmi_version!r}")
     stop = 4.0
     step = params.sample_time_s
-    lines = _md_head(fmi_version, token, description) + units_xml()
+    lines = _md_head(fmi_version, token, description, step) + units_xml()
     lines.append("  <LogCategories>")
     lines += [f'    <Category name="{n}" description="{d}"/>' for n, d in LOG_CATEGORIES]
     lines.append("  </LogCategories>")

@@ -77,9 +77,13 @@ DESCRIPTION = (
 
 
 def instantiation_token(tables: str, config_values: str, fmi_version: int) -> str:
-    """Deterministic GUID / instantiation token of an export (same inputs, same token)."""
+    """Deterministic GUID / instantiation token of an export (same inputs, same token).
+
+    A name-based RFC 4122 UUID (version 5 layout: version and variant bits set) of the SHA-256
+    of everything the binary depends on, in braces.
+    """
     h = hashlib.sha256(f"{__version__}|{fmi_version}|{config_values}|{tables}".encode())
-    return "{" + str(uuid.UUID(h.hexdigest()[:32])) + "}"
+    return "{" + str(uuid.UUID(bytes=h.digest()[:16], version=5)) + "}"
 
 
 # ---------------------------------------------------------------------------------- build

@@ -503,21 +503,6 @@ def _nice_ceil(x: float) -> float:
     return math.ceil(x / e - 1e-9) * e
 
 
-def force_bound_N(surrogate: Surrogate, chain: kin.ChainParams) -> float:
-    """Declared maximum of the force outputs (N): twice the largest tabulated force at the
-    closed gap (the force falls with the gap), rounded up to two significant digits."""
-    g_lo = min(kin.gap_mm(x, chain) for x in kin.theta_range_deg(chain))
-    fmax = 0.0
-    for m in MATERIAL_NAMES:
-        lo, hi = surrogate.thickness_range(m)
-        for i in range(241):
-            t = lo + (hi - lo) * i / 240
-            fmax = max(fmax, surrogate.evaluate_scalar(g_lo, t, m)[0])
-        for t in surrogate.thicknesses(m):
-            fmax = max(fmax, surrogate.evaluate_scalar(g_lo, t, m)[0])
-    return _nice_ceil(2.0 * fmax)
-
-
 def derived_values(params: ControllerParams, surrogate: Surrogate) -> dict[str, dict[str, float]]:
     """Start values and limits (SI) that depend on the chain, the surrogate or other limits.
 
@@ -536,7 +521,6 @@ def derived_values(params: ControllerParams, surrogate: Surrogate) -> dict[str, 
     th_lo_deg, th_hi_deg = kin.theta_range_deg(chain)
     th_lo, th_hi = math.radians(th_lo_deg), math.radians(th_hi_deg)
     gaps = [kin.gap_mm(th_lo_deg + (th_hi_deg - th_lo_deg) * i / 400, chain) for i in range(401)]
-    f_max = force_bound_N(surrogate, chain)
     tl_max = spec("torque_limit").max
     r_min = spec("pulley_radius").min
     v_max = _nice_ceil(max((th_hi - th_lo) / spec("sample_time").min, THETA_DOT_MAX))
@@ -548,8 +532,10 @@ def derived_values(params: ControllerParams, surrogate: Surrogate) -> dict[str, 
         },
         "torque": {"min": -tl_max, "max": tl_max},
         "force_handle": {"min": -tl_max / r_min, "max": tl_max / r_min},
-        "force_jaw": {"min": 0.0, "max": f_max},
-        "force_tissue": {"min": 0.0, "max": f_max},
+        # no declared max: the tissue scale, the Prony terms and the surrogate's range above
+        # the FE force cap make any bound either violated or meaningless (issue 17)
+        "force_jaw": {"min": 0.0},
+        "force_tissue": {"min": 0.0},
         "gap": {
             "start": kin.gap_mm(th_hi_deg, chain) * m_per_mm,
             "min": min(gaps) * m_per_mm - 1e-6,
