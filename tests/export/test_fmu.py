@@ -831,6 +831,21 @@ def test_step_past_the_stop_time_is_an_error(slaves, version):
         s.free()
 
 
+@pytest.mark.parametrize("version", [2, 3])
+def test_binary_loads_on_old_glibc(fmus, version):
+    """Issue 17: the Linux binary needs no glibc symbol newer than 2.17 (CentOS 7, RHEL 8),
+    read from its dynamic symbol table with binutils' objdump."""
+    import re
+
+    _require(shutil.which("objdump") is not None, "objdump (binutils)")
+    res = subprocess.run(["objdump", "-T", str(fmus[version].binary)], capture_output=True,
+                         text=True, check=True)  # fmt: skip
+    versions = {
+        tuple(int(x) for x in v.split(".")) for v in re.findall(r"GLIBC_([\d.]+)", res.stdout)
+    }
+    assert versions and max(versions) <= (2, 17), sorted(versions)
+
+
 def test_fmi3_refuses_event_mode(slaves):
     s = slaves[3]
     assert s.instantiate(event_mode=True) is None
