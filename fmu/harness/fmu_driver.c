@@ -1,5 +1,5 @@
 /*
- * fmu_driver: load an extracted FMU binary with dlopen (no Python) and run it.
+ * fmu_driver: load an extracted FMU binary with dlopen / LoadLibrary (no Python) and run it.
  *
  *   fmu_driver VERSION LIBRARY TOKEN MODE [N] [options]
  *
@@ -18,7 +18,11 @@
  * Exit status 0 if every call returned OK or Warning, 1 otherwise, 2 on usage errors.
  */
 #define _POSIX_C_SOURCE 200809L
+#ifdef _WIN32
+#include <windows.h> /* LoadLibrary / GetProcAddress: the same driver for the win64 DLL */
+#else
 #include <dlfcn.h>
+#endif
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -61,6 +65,19 @@ static fmi3GetBooleanTYPE *f3GetBoolean;
 static fmi3DoStepTYPE *f3DoStep;
 static fmi3TerminateTYPE *f3Terminate;
 
+#ifdef _WIN32
+static void *sym(const char *name) {
+    FARPROC f = GetProcAddress((HMODULE)lib, name);
+    void *p;
+    if (!f) {
+        fprintf(stderr, "fmu_driver: symbol %s not found (error %lu)\n", name,
+                (unsigned long)GetLastError());
+        exit(2);
+    }
+    memcpy(&p, &f, sizeof p);
+    return p;
+}
+#else
 static void *sym(const char *name) {
     void *p = dlsym(lib, name);
     if (!p) {
@@ -69,13 +86,23 @@ static void *sym(const char *name) {
     }
     return p;
 }
+#endif
 
 static void load(const char *path) {
+#ifdef _WIN32
+    lib = (void *)LoadLibraryA(path);
+    if (!lib) {
+        fprintf(stderr, "fmu_driver: cannot load %s (error %lu)\n", path,
+                (unsigned long)GetLastError());
+        exit(2);
+    }
+#else
     lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
     if (!lib) {
         fprintf(stderr, "fmu_driver: cannot load %s: %s\n", path, dlerror());
         exit(2);
     }
+#endif
     /* object <-> function pointer conversion through memcpy (ISO C) */
 #define LOAD(var, name)              \
     do {                             \
@@ -241,9 +268,16 @@ static void terminate_free(void *c) {
 }
 
 static double now_s(void) {
+#ifdef _WIN32
+    LARGE_INTEGER f, c;
+    QueryPerformanceFrequency(&f);
+    QueryPerformanceCounter(&c);
+    return (double)c.QuadPart / (double)f.QuadPart;
+#else
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+#endif
 }
 
 static int parse_list(const char *s, unsigned *out) {
@@ -365,6 +399,10 @@ int main(int argc, char **argv) {
     } else {
         return usage();
     }
+#ifdef _WIN32
+    FreeLibrary((HMODULE)lib);
+#else
     dlclose(lib);
+#endif
     return failed;
 }

@@ -16,7 +16,8 @@ one variable table (:func:`grasprom.export.variables.variables`):
 This module writes the sources, compiles the binary and packs the FMU.
 
 The binary for this platform is compiled with ``gcc`` at export time
-(``binaries/linux64`` for FMI 2, ``binaries/x86_64-linux`` for FMI 3); ``sources/`` holds
+(``binaries/linux64`` for FMI 2, ``binaries/x86_64-linux`` for FMI 3), and the win64 DLL with
+MinGW-w64 when it is installed (``binaries/win64``, ``binaries/x86_64-windows``); ``sources/`` holds
 everything needed to rebuild elsewhere (``fmpy compile``).
 
 Timing: the controller runs at its sample time ``sample_time`` (s).  ``doStep(t, h)`` requires
@@ -58,6 +59,10 @@ from grasprom.paths import c_file
 from grasprom.surrogate import Surrogate
 
 BINARY_DIR = {2: "linux64", 3: "x86_64-linux"}
+WINDOWS_BINARY_DIR = {2: "win64", 3: "x86_64-windows"}
+"""FMU platform folders of the Windows DLL (FMI 2, FMI 3)."""
+MINGW_CC = "x86_64-w64-mingw32-gcc"
+"""The MinGW-w64 cross compiler of the Windows DLL (Debian: gcc-mingw-w64-x86-64)."""
 """Platform folder of the binary under ``binaries/`` per FMI version (Linux x86-64)."""
 
 FMI_HEADERS = {
@@ -136,17 +141,31 @@ def write_sources(
     return vars_, token
 
 
-def compile_binary(sources_dir, out_path, fmi_version: int, cc: str = "gcc") -> Path:
-    """Compile the FMU binary (shared library) from ``sources_dir`` with ``cc``."""
+def compile_binary(
+    sources_dir, out_path, fmi_version: int, cc: str = "gcc", windows: bool = False
+) -> Path:
+    """Compile the FMU binary (shared library) from ``sources_dir`` with ``cc``.
+
+    ``windows``: a win64 DLL with the MinGW-w64 cross compiler ``cc``, the GCC runtime linked
+    statically (it needs only the Windows system DLLs).
+    """
     if shutil.which(cc) is None:
-        raise RuntimeError(f"C compiler {cc!r} not found (install gcc)")
+        hint = "gcc-mingw-w64-x86-64" if windows else "gcc"
+        raise RuntimeError(f"C compiler {cc!r} not found (install {hint})")
     s = Path(sources_dir)
     out = Path(out_path)
     out.parent.mkdir(parents=True, exist_ok=True)
     files = [str(s / f) for f in fmu_c_files(fmi_version)]
-    cmd = [cc, *CFLAGS, "-shared", f"-I{s}", "-o", str(out), *files, "-lm"]
-    _run(cmd, "FMU binary build")
+    flags = [f for f in CFLAGS if f not in ("-fPIC", "-fvisibility=hidden")] if windows else CFLAGS
+    extra = ["-static-libgcc"] if windows else []
+    cmd = [cc, *flags, "-shared", f"-I{s}", "-o", str(out), *files, *extra, "-lm"]
+    _run(cmd, "FMU binary build" + (" (win64)" if windows else ""))
     return out
+
+
+def windows_compiler() -> str | None:
+    """The MinGW-w64 cross compiler if installed (:data:`MINGW_CC`), else None."""
+    return MINGW_CC if shutil.which(MINGW_CC) else None
 
 
 def export_fmu(
@@ -155,6 +174,7 @@ def export_fmu(
     surrogate: Surrogate | None = None,
     fmi_version: int = 2,
     cc: str = "gcc",
+    windows: bool | None = None,
 ) -> Path:
     """Export the controller as a co-simulation FMU.
 
@@ -170,6 +190,9 @@ def export_fmu(
         2 (binary in ``binaries/linux64``) or 3 (``binaries/x86_64-linux``).
     cc : str
         C compiler.
+    windows : bool, optional
+        Also build the win64 DLL (``binaries/win64`` / ``binaries/x86_64-windows``) with the
+        MinGW-w64 cross compiler; None (default): if it is installed.
 
     Returns
     -------
@@ -196,6 +219,12 @@ def export_fmu(
         _, token = write_sources(root / "sources", params, surrogate, fmi_version, vars_)
         binary = root / "binaries" / BINARY_DIR[fmi_version] / f"{MODEL_IDENTIFIER}.so"
         compile_binary(root / "sources", binary, fmi_version, cc)
+        mingw = windows_compiler()
+        if windows and mingw is None:
+            raise RuntimeError(f"the win64 DLL needs {MINGW_CC} (Debian: gcc-mingw-w64-x86-64)")
+        if mingw is not None and windows is not False:
+            dll = root / "binaries" / WINDOWS_BINARY_DIR[fmi_version] / f"{MODEL_IDENTIFIER}.dll"
+            compile_binary(root / "sources", dll, fmi_version, mingw, windows=True)
         (root / "modelDescription.xml").write_text(
             model_description(vars_, fmi_version, token, params, DESCRIPTION)
         )
@@ -250,14 +279,19 @@ def zip_tree(root: Path, path: Path) -> None:
                 zf.writestr(info, f.read_bytes())
 
 
-def build_driver(directory, cc: str = "gcc") -> Path:
-    """Compile the C driver (``fmu_driver``: dlopen, no Python) into ``directory``."""
+def build_driver(directory, cc: str = "gcc", windows: bool = False) -> Path:
+    """Compile the C driver (``fmu_driver``: dlopen, no Python) into ``directory``.
+
+    ``windows``: ``fmu_driver.exe`` with the MinGW-w64 cross compiler ``cc`` (LoadLibrary; run
+    it with wine on Linux).
+    """
     if shutil.which(cc) is None:
         raise RuntimeError(f"C compiler {cc!r} not found (install gcc)")
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
-    exe = d / "fmu_driver"
+    exe = d / ("fmu_driver.exe" if windows else "fmu_driver")
+    libs = ["-static-libgcc", "-lm"] if windows else ["-ldl", "-lm"]
     cmd = [cc, "-std=c99", "-O2", "-g", "-Wall", "-Wextra", "-Werror", f"-I{fmi_headers_dir()}",
-           "-o", str(exe), str(c_file(DRIVER_SOURCE)), "-ldl", "-lm"]  # fmt: skip
+           "-o", str(exe), str(c_file(DRIVER_SOURCE)), *libs]  # fmt: skip
     _run(cmd, "C driver build")
     return exe
