@@ -11,10 +11,12 @@
 #include <string.h>
 #include <math.h>
 
-#if defined(__linux__) && defined(__x86_64__) && defined(__GLIBC__) && !defined(GC_NO_SYMVER)
+#if defined(GC_OLD_GLIBC_EXP) && defined(__linux__) && defined(__x86_64__) && defined(__GLIBC__)
 /* Link exp against its glibc 2.2.5 symbol: glibc >= 2.29 adds exp@GLIBC_2.29 (same results,
  * only the SVID error handling dropped), which would stop the FMU from loading on older
- * distributions (RHEL 8: glibc 2.28).  The FMU's binary then needs glibc >= 2.14 (memcpy). */
+ * distributions (RHEL 8: glibc 2.28).  The FMU's binary then needs glibc >= 2.14 (memcpy).
+ * Set by grasprom's own FMU build, which links libm (-lm); a rebuild from sources/ by an
+ * importer that does not link libm (fmpy compile) gets the plain symbol. */
 __asm__(".symver exp,exp@GLIBC_2.2.5");
 #endif
 

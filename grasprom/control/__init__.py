@@ -54,7 +54,9 @@ from grasprom.control.margins import ZETA_TARGET, damping_needed, operating_marg
 from grasprom.control.outputs import write_outputs
 from grasprom.control.params import (
     CONTROLLER_FILE_VERSION,
+    ENCODER_COUNTS_RANGE,
     MAX_PRONY_TERMS,
+    PARAMETER_RANGES,
     ControllerParams,
     load_params,
     params_from_dict,
@@ -149,6 +151,8 @@ __all__ = [
     "plot_tuning",
     "prony_stiffness_factor",
     "rendered_stiffness",
+    "PARAMETER_RANGES",
+    "ENCODER_COUNTS_RANGE",
     "FieldStiffness",
     "field_stiffness_extremes",
     "operating_cases",

@@ -75,6 +75,40 @@ _NON_NEGATIVE_EFFECTS = (
 
 _PRONY_FIELDS = ("prony_g", "prony_tau_s")
 
+PARAMETER_RANGES: dict[str, tuple[float, float]] = {
+    "spring_k_N_per_mm": (0.0, 1e3),
+    "damping_Nms_per_rad": (0.0, 10.0),
+    "velocity_cutoff_Hz": (0.01, 1e5),
+    "pulley_radius_mm": (1.0, 500.0),
+    "torque_limit_Nm": (1e-6, 100.0),
+    "sample_time_s": (1e-5, 1.0),
+    "coupling_stiffness_N_per_mm": (1e-3, 1e5),
+    "force_warning_N": (1e-3, 1e5),
+    "pressure_warning_MPa": (1e-6, 1e3),
+    "jaw_length_mm": (0.1, 1e3),
+    "diameter_mm": (1.0, 1e3),
+    "tissue_scale": (1e-3, 1e3),
+    "jaw_compliance_mm_per_N": (0.0, 1e3),
+    "backlash_deg": (0.0, 28.0),
+    "friction_coulomb_N": (0.0, 1e3),
+    "friction_load_coefficient": (0.0, 10.0),
+    "friction_viscous_N_s_per_mm": (0.0, 1e3),
+    "friction_velocity_threshold_mm_per_s": (1e-3, 1e4),
+    "prony_g": (0.0, 100.0),
+    "prony_tau_s": (1e-6, 1e6),
+    "stiffness_limit_Nm_per_rad": (1e-6, 1e6),
+    "observer_stiffness_factor": (1.0, 1e3),
+    "observer_max_damping_Nms_per_rad": (1e-9, 100.0),
+}
+"""[min, max] of every real controller parameter in its own unit (the field name's): enforced
+by :class:`ControllerParams` for every command (simulate, tune, build, both exports), and the
+FMU declares the same ranges in SI (``grasprom.export.variables`` is generated from this)."""
+
+ENCODER_COUNTS_RANGE = (16, 1 << 30)
+"""``encoder_counts_per_rev``: 0 (no quantisation) or within this range (counts/rev)."""
+
+_BOOLEAN_FIELDS = ("render_spring", "passivity_observer")
+
 
 @dataclass(frozen=True)
 class ControllerParams:
@@ -215,10 +249,12 @@ class ControllerParams:
     def __post_init__(self) -> None:
         _check_material(self)
         _check_rendering(self)
+        _check_booleans(self)
         _check_observer(self)
         _check_scalars(self)
         _normalise_prony(self)
         _check_prony(self)
+        _check_ranges(self)
         _check_sampling(self)
 
     @property
@@ -302,16 +338,44 @@ def _check_scalars(p: ControllerParams) -> None:
     """Positive, non-negative and effect fields, in the order of the field groups."""
     for name in _POSITIVE_FIELDS:
         v = getattr(p, name)
-        if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
+        if isinstance(v, bool) or not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
             raise ValueError(f"controller parameter {name} must be finite and > 0, got {v!r}")
     for name in _NON_NEGATIVE_RATES:
         v = getattr(p, name)
-        if not (math.isfinite(v) and v >= 0):
+        if isinstance(v, bool) or not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
             raise ValueError(f"controller parameter {name} must be finite and >= 0, got {v!r}")
     for name in _NON_NEGATIVE_EFFECTS:
         v = getattr(p, name)
-        if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
+        if isinstance(v, bool) or not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
             raise ValueError(f"controller parameter {name} must be finite and >= 0, got {v!r}")
+
+
+def _check_booleans(p: ControllerParams) -> None:
+    """Flags must be true or false (``"no"`` or 0 is a mistake, not a falsy value)."""
+    for name in _BOOLEAN_FIELDS:
+        v = getattr(p, name)
+        if not isinstance(v, bool):
+            raise ValueError(f"controller parameter {name} must be true or false, got {v!r}")
+
+
+def _check_ranges(p: ControllerParams) -> None:
+    """Every real parameter within :data:`PARAMETER_RANGES`, the encoder counts within theirs."""
+    for name, (lo, hi) in PARAMETER_RANGES.items():
+        values = getattr(p, name)
+        for i, v in enumerate(values if isinstance(values, tuple) else (values,)):
+            if isinstance(v, bool) or not (isinstance(v, int | float) and lo <= v <= hi):
+                where = f"{name}[{i}]" if isinstance(values, tuple) else name
+                raise ValueError(
+                    f"controller parameter {where} = {v!r} outside its range [{lo:g}, {hi:g}] "
+                    "(unit in the name)"
+                )
+    n = p.encoder_counts_per_rev
+    lo, hi = ENCODER_COUNTS_RANGE
+    if isinstance(n, bool) or not isinstance(n, int) or not (n == 0 or lo <= n <= hi):
+        raise ValueError(
+            f"controller parameter encoder_counts_per_rev = {n!r} must be an integer, 0 (no "
+            f"quantisation) or in [{lo}, {hi}] counts per revolution"
+        )
 
 
 def _normalise_prony(p: ControllerParams) -> None:

@@ -156,7 +156,11 @@ def compile_binary(
     out = Path(out_path)
     out.parent.mkdir(parents=True, exist_ok=True)
     files = [str(s / f) for f in fmu_c_files(fmi_version)]
-    flags = [f for f in CFLAGS if f not in ("-fPIC", "-fvisibility=hidden")] if windows else CFLAGS
+    flags = (
+        [f for f in CFLAGS if f not in ("-fPIC", "-fvisibility=hidden")]
+        if windows
+        else [*CFLAGS, "-DGC_OLD_GLIBC_EXP"]  # exp@GLIBC_2.2.5: loads on glibc < 2.29
+    )
     extra = ["-static-libgcc"] if windows else []
     cmd = [cc, *flags, "-shared", f"-I{s}", "-o", str(out), *files, *extra, "-lm"]
     _run(cmd, "FMU binary build" + (" (win64)" if windows else ""))

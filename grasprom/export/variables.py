@@ -22,10 +22,10 @@ once and generated from here (:mod:`grasprom.export.codegen`):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from grasprom.chain import kinematics as kin
-from grasprom.control import MAX_PRONY_TERMS, ControllerParams
+from grasprom.control import MAX_PRONY_TERMS, PARAMETER_RANGES, ControllerParams
 from grasprom.control.params import OBSERVER_DELAY_MAX, RENDERINGS
 from grasprom.fe import MATERIAL_NAMES
 from grasprom.surrogate import Surrogate
@@ -247,10 +247,13 @@ class VarSpec:
         return 1.0 / self.to_core
 
 
-def _param(name, params_field, core_field, unit, display, core_unit, lo, hi, desc) -> VarSpec:
-    """A Real, fixed parameter."""
-    return VarSpec(name, "Real", "parameter", "fixed", desc, unit, display, params_field,
-                   core_field, core_unit, None, lo, hi)  # fmt: skip
+def _param(name, params_field, core_field, unit, display, core_unit, desc) -> VarSpec:
+    """A Real, fixed parameter; its [min, max] is :data:`grasprom.control.PARAMETER_RANGES`
+    (the range ``ControllerParams`` enforces) in SI."""
+    s = VarSpec(name, "Real", "parameter", "fixed", desc, unit, display, params_field,
+                core_field, core_unit, None)  # fmt: skip
+    lo, hi = PARAMETER_RANGES[params_field.split("[")[0]]
+    return replace(s, min=lo * s.to_si, max=hi * s.to_si)
 
 
 def _output(name, type_, desc, core_field, column, unit=None, display=None, core_unit=None):
@@ -263,61 +266,196 @@ _MATERIALS_DESC = ", ".join(f"{i} {m}" for i, m in enumerate(MATERIAL_NAMES))
 _RENDERINGS_DESC = ", ".join(f"{i} {m}" for m, i in RENDERING_CODES.items())
 
 _PARAMETERS: tuple[VarSpec, ...] = (
-    _param("spring_k", "spring_k_N_per_mm", "spring_k", "N/m", "N/mm", "N/mm", 0.0, 1e6,
-           "return-spring rate of the instrument"),
-    _param("damping", "damping_Nms_per_rad", "damping", "N.m.s/rad", None, None, 0.0, 10.0,
-           "virtual damping at the handle pivot, on the handle velocity"),
-    _param("velocity_cutoff", "velocity_cutoff_Hz", "velocity_cutoff", "Hz", None, None, 0.01,
-           1e5, "cutoff of the first-order low-pass filter of the velocity estimate "
-           "(must be below the Nyquist frequency 0.5/sample_time)"),
-    _param("pulley_radius", "pulley_radius_mm", "pulley_radius", "m", "mm", "mm", 1e-3, 0.5,
-           "motor pulley radius: torque = cable tension x radius"),
-    _param("torque_limit", "torque_limit_Nm", "torque_limit", "N.m", None, None, 1e-6, 100.0,
-           "motor torque saturation (symmetric)"),
-    _param("sample_time", "sample_time_s", "sample_time", "s", "ms", None, 1e-5, 1.0,
-           "controller period; the communication step must be a multiple of it"),
-    _param("coupling_stiffness", "coupling_stiffness_N_per_mm", "coupling_k", "N/m", "N/mm",
-           "N/mm", 1.0, 1e8,
-           "virtual coupling stiffness at the jaw (bound on the rendered jaw stiffness)"),
-    _param("force_warning", "force_warning_N", "force_warning", "N", None, None, 1e-3, 1e5,
-           "tissue-safety threshold on the tissue jaw force"),
-    _param("pressure_warning", "pressure_warning_MPa", "pressure_warning", "Pa", "kPa", "MPa",
-           1.0, 1e9, "tissue-safety threshold on the mean contact pressure"),
-    _param("jaw_length", "jaw_length_mm", "jaw_length", "m", "mm", "mm", 1e-4, 1.0,
-           "length of tube under the jaws (contact area for the mean pressure)"),
-    _param("diameter", "diameter_mm", "diameter", "m", "mm", "mm", 1e-3, 1.0,
-           "tube outer diameter (contact width of the flattened tube); must exceed 2 x "
-           "thickness"),
+    _param(
+        "spring_k",
+        "spring_k_N_per_mm",
+        "spring_k",
+        "N/m",
+        "N/mm",
+        "N/mm",
+        "return-spring rate of the instrument",
+    ),
+    _param(
+        "damping",
+        "damping_Nms_per_rad",
+        "damping",
+        "N.m.s/rad",
+        None,
+        None,
+        "virtual damping at the handle pivot, on the handle velocity",
+    ),
+    _param(
+        "velocity_cutoff",
+        "velocity_cutoff_Hz",
+        "velocity_cutoff",
+        "Hz",
+        None,
+        None,
+        "cutoff of the first-order low-pass filter of the velocity estimate "
+        "(must be below the Nyquist frequency 0.5/sample_time)",
+    ),
+    _param(
+        "pulley_radius",
+        "pulley_radius_mm",
+        "pulley_radius",
+        "m",
+        "mm",
+        "mm",
+        "motor pulley radius: torque = cable tension x radius",
+    ),
+    _param(
+        "torque_limit",
+        "torque_limit_Nm",
+        "torque_limit",
+        "N.m",
+        None,
+        None,
+        "motor torque saturation (symmetric)",
+    ),
+    _param(
+        "sample_time",
+        "sample_time_s",
+        "sample_time",
+        "s",
+        "ms",
+        None,
+        "controller period; the communication step must be a multiple of it",
+    ),
+    _param(
+        "coupling_stiffness",
+        "coupling_stiffness_N_per_mm",
+        "coupling_k",
+        "N/m",
+        "N/mm",
+        "N/mm",
+        "virtual coupling stiffness at the jaw (bound on the rendered jaw stiffness)",
+    ),
+    _param(
+        "force_warning",
+        "force_warning_N",
+        "force_warning",
+        "N",
+        None,
+        None,
+        "tissue-safety threshold on the tissue jaw force",
+    ),
+    _param(
+        "pressure_warning",
+        "pressure_warning_MPa",
+        "pressure_warning",
+        "Pa",
+        "kPa",
+        "MPa",
+        "tissue-safety threshold on the mean contact pressure",
+    ),
+    _param(
+        "jaw_length",
+        "jaw_length_mm",
+        "jaw_length",
+        "m",
+        "mm",
+        "mm",
+        "length of tube under the jaws (contact area for the mean pressure)",
+    ),
+    _param(
+        "diameter",
+        "diameter_mm",
+        "diameter",
+        "m",
+        "mm",
+        "mm",
+        "tube outer diameter (contact width of the flattened tube); must exceed 2 x thickness",
+    ),
     # rendering of diagnosed effects (grasprom diagnose -> --augmented); neutral defaults
-    _param("tissue_scale", "tissue_scale", "tissue_scale", None, None, None, 1e-3, 1e3,
-           "factor on the tissue force and stiffness (tissue_stiffness_scale)"),
-    _param("jaw_compliance", "jaw_compliance_mm_per_N", "jaw_compliance", "m/N", "mm/N",
-           "mm/N", 0.0, 1.0,
-           "series compliance of jaw + mechanism: coupling 1/(1/k_c + C) (jaw_compliance)"),
-    _param("backlash", "backlash_deg", "backlash_deg", "rad", "deg", "deg", 0.0, 0.5,
-           "play between the encoder and the linkage, total width (backlash)"),
-    _param("friction_coulomb", "friction_coulomb_N", "friction_coulomb", "N", None, None, 0.0,
-           1e3, "Coulomb friction at the finger, in the direction of the last motion "
-           "(mechanism_friction)"),
-    _param("friction_load_coefficient", "friction_load_coefficient", "friction_load", None,
-           None, None, 0.0, 10.0, "load-proportional Coulomb friction, x |tissue handle force|"),
-    _param("friction_viscous", "friction_viscous_N_s_per_mm", "friction_viscous", "N.s/m",
-           "N.s/mm", "N.s/mm", 0.0, 1e6, "viscous friction at the finger, on the finger speed"),
-    _param("friction_velocity_threshold", "friction_velocity_threshold_mm_per_s",
-           "friction_vthr", "m/s", "mm/s", "mm/s", 1e-6, 10.0,
-           "finger speed above which the friction direction follows the motion"),
+    _param(
+        "tissue_scale",
+        "tissue_scale",
+        "tissue_scale",
+        None,
+        None,
+        None,
+        "factor on the tissue force and stiffness (tissue_stiffness_scale)",
+    ),
+    _param(
+        "jaw_compliance",
+        "jaw_compliance_mm_per_N",
+        "jaw_compliance",
+        "m/N",
+        "mm/N",
+        "mm/N",
+        "series compliance of jaw + mechanism: coupling 1/(1/k_c + C) (jaw_compliance)",
+    ),
+    _param(
+        "backlash",
+        "backlash_deg",
+        "backlash_deg",
+        "rad",
+        "deg",
+        "deg",
+        "play between the encoder and the linkage, total width (backlash)",
+    ),
+    _param(
+        "friction_coulomb",
+        "friction_coulomb_N",
+        "friction_coulomb",
+        "N",
+        None,
+        None,
+        "Coulomb friction at the finger, in the direction of the last motion (mechanism_friction)",
+    ),
+    _param(
+        "friction_load_coefficient",
+        "friction_load_coefficient",
+        "friction_load",
+        None,
+        None,
+        None,
+        "load-proportional Coulomb friction, x |tissue handle force|",
+    ),
+    _param(
+        "friction_viscous",
+        "friction_viscous_N_s_per_mm",
+        "friction_viscous",
+        "N.s/m",
+        "N.s/mm",
+        "N.s/mm",
+        "viscous friction at the finger, on the finger speed",
+    ),
+    _param(
+        "friction_velocity_threshold",
+        "friction_velocity_threshold_mm_per_s",
+        "friction_vthr",
+        "m/s",
+        "mm/s",
+        "mm/s",
+        "finger speed above which the friction direction follows the motion",
+    ),
     *(
-        _param(f"prony_g_{i + 1}", f"prony_g[{i}]", f"prony_g[{i}]", None, None, None, 0.0,
-               100.0, f"Prony coefficient {i + 1} of the viscoelastic jaw-force rendering "
-               "(tissue_viscoelasticity; 0 = term off)")
+        _param(
+            f"prony_g_{i + 1}",
+            f"prony_g[{i}]",
+            f"prony_g[{i}]",
+            None,
+            None,
+            None,
+            f"Prony coefficient {i + 1} of the viscoelastic jaw-force rendering "
+            "(tissue_viscoelasticity; 0 = term off)",
+        )
         for i in range(PRONY_MAX)
     ),
     *(
-        _param(f"prony_tau_{i + 1}", f"prony_tau_s[{i}]", f"prony_tau[{i}]", "s", None, None,
-               1e-6, 1e6, f"relaxation time of Prony term {i + 1}")
+        _param(
+            f"prony_tau_{i + 1}",
+            f"prony_tau_s[{i}]",
+            f"prony_tau[{i}]",
+            "s",
+            None,
+            None,
+            f"relaxation time of Prony term {i + 1}",
+        )
         for i in range(PRONY_MAX)
     ),
-)  # fmt: skip
+)
 
 _FLAG_DESCRIPTIONS = {
     "contact": "the jaws touch the tissue (surrogate force > 0)",
@@ -330,72 +468,183 @@ _FLAG_DESCRIPTIONS = {
 
 SPECS: tuple[VarSpec, ...] = (
     VarSpec("time", "Real", "independent", "continuous", "simulation time", unit="s"),
-    VarSpec("theta", "Real", "input", "continuous",
-            "handle angle (decreases when closing; 0 = closed end stop, as in grasprom "
-            "simulate); clamped into [min, max], NaN holds the last valid angle",
-            unit="rad", display_unit="deg"),
-    VarSpec("theta_dot", "Real", "input", "continuous",
-            "handle angular velocity, used for the damping when use_theta_dot is true "
-            "(else ignored: the velocity is estimated from theta)",
-            unit="rad/s", display_unit="deg/s", min=-THETA_DOT_MAX, max=THETA_DOT_MAX),
-    VarSpec("thickness", "Real", "parameter", "fixed",
-            "colon wall thickness (clamped into the tabulated range of the material)",
-            unit="m", display_unit="mm", params_field="thickness_mm", core_field="thickness",
-            core_unit="mm"),
-    VarSpec("material", "Integer", "parameter", "fixed",
-            "tissue material model: " + _MATERIALS_DESC, params_field="material",
-            core_field="material", min=0, max=len(MATERIAL_NAMES) - 1),
+    VarSpec(
+        "theta",
+        "Real",
+        "input",
+        "continuous",
+        "handle angle (decreases when closing; 0 = closed end stop, as in grasprom "
+        "simulate); clamped into [min, max], NaN holds the last valid angle",
+        unit="rad",
+        display_unit="deg",
+    ),
+    VarSpec(
+        "theta_dot",
+        "Real",
+        "input",
+        "continuous",
+        "handle angular velocity, used for the damping when use_theta_dot is true "
+        "(else ignored: the velocity is estimated from theta)",
+        unit="rad/s",
+        display_unit="deg/s",
+        min=-THETA_DOT_MAX,
+        max=THETA_DOT_MAX,
+    ),
+    VarSpec(
+        "thickness",
+        "Real",
+        "parameter",
+        "fixed",
+        "colon wall thickness (clamped into the tabulated range of the material)",
+        unit="m",
+        display_unit="mm",
+        params_field="thickness_mm",
+        core_field="thickness",
+        core_unit="mm",
+    ),
+    VarSpec(
+        "material",
+        "Integer",
+        "parameter",
+        "fixed",
+        "tissue material model: " + _MATERIALS_DESC,
+        params_field="material",
+        core_field="material",
+        min=0,
+        max=len(MATERIAL_NAMES) - 1,
+    ),
     *_PARAMETERS,
-    VarSpec("encoder_counts", "Integer", "parameter", "fixed",
-            "motor encoder resolution in counts per revolution (0: no quantisation of theta)",
-            params_field="encoder_counts_per_rev", core_field="encoder_counts", min=0,
-            max=ENCODER_COUNTS_MAX),
-    VarSpec("render_spring", "Boolean", "parameter", "fixed",
-            "include the instrument's return spring in the rendered handle force",
-            params_field="render_spring", core_field="render_spring"),
-    VarSpec("use_theta_dot", "Boolean", "parameter", "fixed",
-            "damp the theta_dot input instead of the filtered backward-difference estimate"),
-    _output("torque", "Real", "motor torque command, after saturation", "torque", "torque_Nm",
-            "N.m"),
-    _output("force_handle", "Real",
-            "rendered handle force (positive resists closing) = torque / pulley_radius",
-            "force_handle", "force_handle_N", "N"),
-    _output("force_jaw", "Real", "rendered jaw force through the virtual coupling",
-            "force_jaw", "force_jaw_N", "N"),
-    _output("force_tissue", "Real", "tissue force of the surrogate at the kinematic gap",
-            "force_tissue", "force_tissue_N", "N"),
-    _output("gap", "Real", "jaw gap from the kinematic chain", "gap", "gap_mm", "m", "mm",
-            "mm"),
-    _output("velocity", "Real",
-            "handle velocity used for the damping (filtered estimate or theta_dot)",
-            "velocity", "velocity_rad_per_s", "rad/s", "deg/s"),
+    VarSpec(
+        "encoder_counts",
+        "Integer",
+        "parameter",
+        "fixed",
+        "motor encoder resolution in counts per revolution (0: no quantisation of theta)",
+        params_field="encoder_counts_per_rev",
+        core_field="encoder_counts",
+        min=0,
+        max=ENCODER_COUNTS_MAX,
+    ),
+    VarSpec(
+        "render_spring",
+        "Boolean",
+        "parameter",
+        "fixed",
+        "include the instrument's return spring in the rendered handle force",
+        params_field="render_spring",
+        core_field="render_spring",
+    ),
+    VarSpec(
+        "use_theta_dot",
+        "Boolean",
+        "parameter",
+        "fixed",
+        "damp the theta_dot input instead of the filtered backward-difference estimate",
+    ),
+    _output(
+        "torque", "Real", "motor torque command, after saturation", "torque", "torque_Nm", "N.m"
+    ),
+    _output(
+        "force_handle",
+        "Real",
+        "rendered handle force (positive resists closing) = torque / pulley_radius",
+        "force_handle",
+        "force_handle_N",
+        "N",
+    ),
+    _output(
+        "force_jaw",
+        "Real",
+        "rendered jaw force through the virtual coupling",
+        "force_jaw",
+        "force_jaw_N",
+        "N",
+    ),
+    _output(
+        "force_tissue",
+        "Real",
+        "tissue force of the surrogate at the kinematic gap",
+        "force_tissue",
+        "force_tissue_N",
+        "N",
+    ),
+    _output("gap", "Real", "jaw gap from the kinematic chain", "gap", "gap_mm", "m", "mm", "mm"),
+    _output(
+        "velocity",
+        "Real",
+        "handle velocity used for the damping (filtered estimate or theta_dot)",
+        "velocity",
+        "velocity_rad_per_s",
+        "rad/s",
+        "deg/s",
+    ),
     *(_output(n, "Boolean", _FLAG_DESCRIPTIONS[n], n, n) for n in FLAG_NAMES),
     # appended after the outputs: the value references above stay as they were
-    VarSpec("rendering", "Integer", "parameter", "fixed",
-            "tissue rendering scheme: " + _RENDERINGS_DESC + " (1: the stiffness-clipped "
-            "field of stiffness_limit, no virtual coupling)", params_field="rendering",
-            core_field="rendering", min=0, max=len(RENDERINGS) - 1),
-    _param("stiffness_limit", "stiffness_limit_Nm_per_rad", "stiffness_limit", "N.m/rad", None,
-           None, 1e-6, 1e6, "largest handle stiffness of the clipped rendering, at the handle "
-           "pivot (the field's slope bound K_lim; rendering 1 only)"),
+    VarSpec(
+        "rendering",
+        "Integer",
+        "parameter",
+        "fixed",
+        "tissue rendering scheme: " + _RENDERINGS_DESC + " (1: the stiffness-clipped "
+        "field of stiffness_limit, no virtual coupling)",
+        params_field="rendering",
+        core_field="rendering",
+        min=0,
+        max=len(RENDERINGS) - 1,
+    ),
+    _param(
+        "stiffness_limit",
+        "stiffness_limit_Nm_per_rad",
+        "stiffness_limit",
+        "N.m/rad",
+        None,
+        None,
+        "largest handle stiffness of the clipped rendering, at the handle "
+        "pivot (the field's slope bound K_lim; rendering 1 only)",
+    ),
     # appended after rendering/stiffness_limit: the time-domain passivity observer (issue 13)
-    VarSpec("passivity_observer", "Boolean", "parameter", "fixed",
-            "time-domain passivity observer / controller on the handle port (needs rendering "
-            "1; the field is then built with stiffness_limit x observer_stiffness_factor)",
-            params_field="passivity_observer", core_field="passivity_observer"),
-    _param("observer_stiffness_factor", "observer_stiffness_factor",
-           "observer_stiffness_factor", None, None, None, 1.0, 1e3,
-           "factor on stiffness_limit of the clipped field with the passivity observer on"),
-    _param("observer_max_damping", "observer_max_damping_Nms_per_rad", "observer_max_damping",
-           "N.m.s/rad", None, None, 1e-9, 100.0,
-           "cap of the damping the passivity controller adds, at the handle pivot"),
-    VarSpec("observer_delay", "Integer", "parameter", "fixed",
-            "samples between a step's output and its torque acting on the handle (the "
-            "observer charges each interval with the torque that drove it; 0 for an importer "
-            "that applies the torque over the next communication step)",
-            params_field="observer_delay_samples", core_field="observer_delay", min=0,
-            max=OBSERVER_DELAY_MAX),
-)  # fmt: skip
+    VarSpec(
+        "passivity_observer",
+        "Boolean",
+        "parameter",
+        "fixed",
+        "time-domain passivity observer / controller on the handle port (needs rendering "
+        "1; the field is then built with stiffness_limit x observer_stiffness_factor)",
+        params_field="passivity_observer",
+        core_field="passivity_observer",
+    ),
+    _param(
+        "observer_stiffness_factor",
+        "observer_stiffness_factor",
+        "observer_stiffness_factor",
+        None,
+        None,
+        None,
+        "factor on stiffness_limit of the clipped field with the passivity observer on",
+    ),
+    _param(
+        "observer_max_damping",
+        "observer_max_damping_Nms_per_rad",
+        "observer_max_damping",
+        "N.m.s/rad",
+        None,
+        None,
+        "cap of the damping the passivity controller adds, at the handle pivot",
+    ),
+    VarSpec(
+        "observer_delay",
+        "Integer",
+        "parameter",
+        "fixed",
+        "samples between a step's output and its torque acting on the handle (the "
+        "observer charges each interval with the torque that drove it; 0 for an importer "
+        "that applies the torque over the next communication step)",
+        params_field="observer_delay_samples",
+        core_field="observer_delay",
+        min=0,
+        max=OBSERVER_DELAY_MAX,
+    ),
+)
 """The FMU's variables in value-reference order (vr = position)."""
 
 

@@ -113,7 +113,7 @@ def test_saturation_warning_and_clamp_flags(surrogate):
     out = ctl.step(float("nan"))
     assert out.theta_clamped and math.isfinite(out.torque_Nm)
     # pressure threshold alone
-    low = dataclasses.replace(p, force_warning_N=1e6, pressure_warning_MPa=1e-3)
+    low = dataclasses.replace(p, force_warning_N=1e5, pressure_warning_MPa=1e-3)
     c2 = ImpedanceController(low, surrogate)
     o2 = _hold(c2, 3.0, 5)
     area = p.jaw_length_mm * 0.5 * math.pi * (p.diameter_mm - p.thickness_mm)
