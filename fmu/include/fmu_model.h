@@ -43,6 +43,7 @@ typedef struct {
     double start;   /* SI */
     double min;     /* SI, -inf/+inf if unbounded */
     double max;
+    int tunable;    /* parameter that may change in step mode (variability="tunable") */
 } gf_var_t;
 
 /* statuses: same codes as fmi2Status and fmi3Status (OK, Warning, Discard, Error, Fatal) */

@@ -352,7 +352,8 @@ def config_header(vars_: list[Variable], token: str) -> str:
         hi = math.inf if v.max is None else float(v.max)
         rows.append(
             f'    {{"{v.name}", {_GF_TYPES[v.type]}, {_GF_CAUSALITY[v.causality]}, '
-            f"{c_double(start)}, {c_double(lo)}, {c_double(hi)}}}"
+            f"{c_double(start)}, {c_double(lo)}, {c_double(hi)}, "
+            f"{int(v.variability == 'tunable')}}}"
         )
     lines.append(",\n".join(rows))
     lines += ["};", ""]
@@ -362,6 +363,10 @@ def config_header(vars_: list[Variable], token: str) -> str:
         '#error "GF_FIELD_POINTS != GC_FIELD_POINTS"',
         "#endif",
     ]
+    tunable = [v.spec.core_field for v in vars_ if v.variability == "tunable"]
+    copy = " ".join(f"(dst)->{f} = (src)->{f};" for f in tunable)
+    lines += ["/* the core fields of the tunable parameters (set in step mode) */",
+              f"#define GF_COPY_TUNABLE(dst, src) do {{ {copy} }} while (0)", ""]  # fmt: skip
     lines += _unit_factor_macros(vars_)
     lines += _core_params_function(vars_)
     lines += _write_outputs_function(vars_)

@@ -247,10 +247,17 @@ class VarSpec:
         return 1.0 / self.to_core
 
 
+TUNABLE_PARAMETERS = ("damping", "torque_limit", "force_warning", "pressure_warning")
+"""FMU parameters an importer may change between steps (``variability="tunable"``): gains and
+thresholds the controller step reads directly, with no state derived from them at
+initialisation (the filter pole, the field table, the Prony factors are; those stay fixed)."""
+
+
 def _param(name, params_field, core_field, unit, display, core_unit, desc) -> VarSpec:
     """A Real, fixed parameter; its [min, max] is :data:`grasprom.control.PARAMETER_RANGES`
     (the range ``ControllerParams`` enforces) in SI."""
-    s = VarSpec(name, "Real", "parameter", "fixed", desc, unit, display, params_field,
+    variability = "tunable" if name in TUNABLE_PARAMETERS else "fixed"
+    s = VarSpec(name, "Real", "parameter", variability, desc, unit, display, params_field,
                 core_field, core_unit, None)  # fmt: skip
     lo, hi = PARAMETER_RANGES[params_field.split("[")[0]]
     return replace(s, min=lo * s.to_si, max=hi * s.to_si)

@@ -9,6 +9,7 @@ otherwise.
 from __future__ import annotations
 
 import ctypes
+import dataclasses
 import json
 import math
 import os
@@ -773,7 +774,7 @@ def test_state_machine_misuse_returns_error_and_logs_why(slaves, version):
         assert s.enter() == 3
         assert s.get("torque") == (0, 0.0)  # start value until the first step
         assert s.exit() == 0
-        assert s.set("damping", 0.1) == 3 and "fixed" in s.last()
+        assert s.set("spring_k", 100.0) == 3 and "fixed" in s.last()
         assert s.step(0.0, 1.5e-3) == 3 and "multiple" in s.last()
         assert s.step(0.0, -1e-3) == 3
         assert s.step(0.5, 1e-3) == 3 and "does not match" in s.last()
@@ -881,6 +882,39 @@ def test_binary_loads_on_old_glibc(fmus, version):
         tuple(int(x) for x in v.split(".")) for v in re.findall(r"GLIBC_([\d.]+)", res.stdout)
     }
     assert versions and max(versions) <= (2, 17), sorted(versions)
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_tunable_parameters_change_between_steps(fmus, slaves, surrogate, version):
+    """Issue 17: damping, torque_limit and the warning thresholds are tunable. Reference: the
+    Python controller whose parameters change at the same step (a fresh instance with the new
+    damping gives other torques, so the change is seen); fixed parameters stay refused."""
+    md_vars = fmus[version].vars
+    assert {n for n, v in md_vars.items() if v.variability == "tunable"} == {
+        "damping", "torque_limit", "force_warning", "pressure_warning"}  # fmt: skip
+    s = slaves[version]
+    params = ControllerParams()
+    ctl = ImpedanceController(params, surrogate)
+    angles = np.radians(np.concatenate([np.linspace(22.0, 3.0, 30), np.linspace(3.0, 8.0, 30)]))
+    assert s.instantiate()
+    try:
+        assert s.enter() == 0 and s.exit() == 0
+        for i, th in enumerate(angles):
+            if i == 30:
+                assert s.set("damping", 0.004) == 0
+                assert s.set("torque_limit", 0.05) == 0
+                assert s.set("thickness", 1.0e-3) == 3 and "fixed" in s.last()
+                ctl.params = dataclasses.replace(params, damping_Nms_per_rad=0.004,
+                                                 torque_limit_Nm=0.05)  # fmt: skip
+            assert s.set("theta", float(th)) == 0
+            assert s.step(i * 1e-3, 1e-3) == 0
+            ref = ctl.step(float(th))
+            assert s.get("torque")[1] == pytest.approx(ref.torque_Nm, rel=1e-12, abs=1e-15), i
+            assert s.get("saturated")[1] == ref.saturated, i
+        assert s.set("damping", -1.0) == 1 and "clamped" in s.last()
+        assert s.set("damping", math.nan) == 3
+    finally:
+        s.free()
 
 
 def test_fmi3_refuses_event_mode(slaves):
