@@ -13,6 +13,9 @@
 #include "grasp_fmu_config.h"
 #include "grasp_tables.h"
 
+/* bounded work per doStep (issue 14: one doStep of 1e5 s blocked for 27 s) */
+#define GF_MAX_SAMPLES_PER_STEP 10000000ULL
+
 struct gf_instance {
     char *name;
     gf_logger_t logger;
@@ -239,6 +242,13 @@ int gf_do_step(gf_instance_t *inst, const char *fn, double t, double h) {
     if (fabs(ratio - (double)k) > 1e-9 * (double)k) {
         gf_log(inst, GF_ERROR, "%s: communication step size %g s is not a multiple of the "
                                "controller sample time %g s (ratio %.12g)", fn, h, T, ratio);
+        return GF_ERROR;
+    }
+    if (k > GF_MAX_SAMPLES_PER_STEP) {
+        gf_log(inst, GF_ERROR, "%s: a communication step of %g s is %llu controller samples, "
+                               "more than %llu per doStep (split it: one sample takes about "
+                               "0.2 us, so this bound is about 2 s of work)", fn, h,
+               (unsigned long long)k, (unsigned long long)GF_MAX_SAMPLES_PER_STEP);
         return GF_ERROR;
     }
     now = inst->v[GF_VR_time];

@@ -917,6 +917,22 @@ def test_tunable_parameters_change_between_steps(fmus, slaves, surrogate, versio
         s.free()
 
 
+@pytest.mark.parametrize("version", [2, 3])
+def test_do_step_work_is_bounded(slaves, version):
+    """Issue 14: a 1e5 s communication step (1e8 samples) is refused before any sample runs
+    (the FMU time does not move), and the instance stays usable."""
+    s = slaves[version]
+    assert s.instantiate()
+    try:
+        assert s.enter() == 0 and s.exit() == 0
+        assert s.step(0.0, 1e5) == 3 and "per doStep" in s.last()
+        assert s.get("time") == (0, 0.0)
+        assert s.step(0.0, 10.0) == 0  # 1e4 samples: fine
+        assert s.get("time") == (0, pytest.approx(10.0))
+    finally:
+        s.free()
+
+
 def test_fmi3_refuses_event_mode(slaves):
     s = slaves[3]
     assert s.instantiate(event_mode=True) is None
