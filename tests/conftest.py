@@ -28,7 +28,9 @@ def python() -> str:
 
 @pytest.fixture(scope="session")
 def surrogate():
-    """Surrogate built once from the shipped sweep fe_data/default."""
+    """Surrogate built once from the shipped 2D sweep fe_data/2d: the unit tests of the controller,
+    exports and diagnosis run on this fixed, fast data set; the default (3D) data is what the
+    end-to-end tests (build, examples, README commands) use."""
     from grasprom.surrogate import Surrogate
 
-    return Surrogate.build(ROOT / "fe_data" / "default")
+    return Surrogate.build(ROOT / "fe_data" / "2d")

@@ -33,7 +33,7 @@ KW = dict(materials=["le"], thicknesses=[2.0], verify=False, n_theta=45)
 def sur() -> Surrogate:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
-        return Surrogate.build(ROOT / "fe_data" / "default")
+        return Surrogate.build(ROOT / "fe_data" / "2d")
 
 
 def _spring_slope_fd(chain: kin.ChainParams) -> tuple[float, float]:

@@ -44,7 +44,7 @@ ROOT = Path(__file__).resolve().parents[2]
 def sur() -> Surrogate:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
-        return Surrogate.build(ROOT / "fe_data" / "default")
+        return Surrogate.build(ROOT / "fe_data" / "2d")
 
 
 @pytest.fixture(scope="module")

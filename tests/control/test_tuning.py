@@ -33,7 +33,7 @@ T = 1e-3
 def sur() -> Surrogate:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
-        return Surrogate.build(ROOT / "fe_data" / "default")
+        return Surrogate.build(ROOT / "fe_data" / "2d")
 
 
 @pytest.fixture(scope="session")

@@ -37,8 +37,8 @@ from grasprom.surrogate import (
 from tests import fake_runner as fr
 
 ROOT = Path(__file__).resolve().parents[2]
-DEFAULT = ROOT / "fe_data" / "default"
-HOLDOUT = ROOT / "fe_data" / "holdout"
+DEFAULT = ROOT / "fe_data" / "2d"
+HOLDOUT = ROOT / "fe_data" / "2d_holdout"
 
 
 @pytest.fixture(scope="module")

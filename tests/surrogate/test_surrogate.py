@@ -25,8 +25,8 @@ from grasprom.surrogate import (
 )
 
 ROOT = Path(__file__).resolve().parents[2]
-DEFAULT = ROOT / "fe_data" / "default"
-HOLDOUT = ROOT / "fe_data" / "holdout"
+DEFAULT = ROOT / "fe_data" / "2d"
+HOLDOUT = ROOT / "fe_data" / "2d_holdout"
 MATERIALS = ("mr", "nh", "le")
 
 # targets of issue 3 (held-out FE, haptic range)
