@@ -243,6 +243,42 @@ def export_fmu(
     return out
 
 
+def write_demo_input(path, params: ControllerParams, duration_s: float = 4.0) -> Path:
+    """A handle-angle input for ``fmpy simulate --input-file`` (CSV: ``time`` s, ``theta`` rad).
+
+    Without an input the FMU holds ``theta`` at its start (the open handle) and every output
+    stays constant; this closes the handle from open to closed over the first half (cosine),
+    and reopens it over the second, at the sample time.
+
+    Parameters
+    ----------
+    path : path
+        CSV to write.
+    params : ControllerParams
+        Chain (end stops, deg) and sample time (s).
+    duration_s : float
+        Length of the input, s.
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    import numpy as np
+
+    from grasprom.chain import kinematics as kin
+
+    lo, hi = (np.radians(x) for x in kin.theta_range_deg(params.chain_params))
+    t = np.arange(0.0, duration_s + 0.5 * params.sample_time_s, params.sample_time_s)
+    phase = np.clip(t / (0.5 * duration_s), 0.0, 2.0)
+    theta = lo + (hi - lo) * 0.5 * (1.0 + np.cos(np.pi * phase))
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    lines = ["time,theta,theta_dot"]  # theta_dot unused (use_theta_dot = false), silences fmpy
+    lines += [f"{a!r},{b!r},0.0" for a, b in zip(t.tolist(), theta.tolist())]
+    out.write_text("\n".join(lines) + "\n")
+    return out
+
+
 def check_parameter_ranges(vars_: list[Variable]) -> None:
     """Raise if a parameter's start value is outside its declared [min, max].
 

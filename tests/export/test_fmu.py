@@ -1059,10 +1059,17 @@ def test_fuzz_inputs_and_parameters_never_crash(fmus, slaves, version):
 
 
 # ----------------------------------------------------------------------------------- CLI
+def surrogate_default():
+    """The surrogate of the shipped default data (what ``grasprom export fmu`` uses)."""
+    from grasprom.surrogate import load_surrogate
+
+    return load_surrogate(None, None)
+
+
 def test_cli_export_fmu(tmp_path, capsys):
     _require(shutil.which("gcc") is not None, "gcc")
     from grasprom.cli import main
-    from grasprom.control import save_params
+    from grasprom.control import load_params, save_params
 
     ctl = tmp_path / "controller.json"
     save_params(ControllerParams(thickness_mm=1.2, material="nh", damping_Nms_per_rad=0.01), ctl)
@@ -1074,6 +1081,17 @@ def test_cli_export_fmu(tmp_path, capsys):
     assert float(v["thickness"].start) == pytest.approx(1.2e-3)
     assert int(v["material"].start) == 1 and float(v["damping"].start) == 0.01
     assert "FMI 3.0" in capsys.readouterr().out
+    # issue 17: a demo input so that `fmpy simulate --input-file` closes the handle; the FMU on
+    # it reproduces the Python controller on the same angles
+    demo = np.genfromtxt(tmp_path / "G_input.csv", delimiter=",", names=True)
+    assert demo["theta"][0] == pytest.approx(math.radians(22.0)) and demo["theta"].min() < 1e-9
+    res = simulate_fmu(str(out), input=demo, output=["torque"], stop_time=4.0,
+                       output_interval=1e-3)  # fmt: skip
+    params = load_params(ctl)
+    ctl_ref = ImpedanceController(params, surrogate_default())
+    ref = np.array([ctl_ref.step(float(th)).torque_Nm for th in demo["theta"][:-1]])
+    np.testing.assert_allclose(res["torque"][1:], ref, rtol=1e-9, atol=1e-12)
+    assert ref.max() > 10 * ref[0]  # the closing is felt
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps({"pulley_radius_mm": 1e6}))
     assert main(["export", "fmu", "--out", str(tmp_path / "b.fmu"), "--params", str(bad)]) == 2
