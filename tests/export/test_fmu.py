@@ -179,7 +179,9 @@ def _run_driver(driver, fmu, version, binary, params, theta_rad, wine=None):
     if wine is not None:  # Windows paths for the DLL: wine maps Z: to /
         cmd = [*wine, cmd[0], cmd[1], "Z:" + str(binary).replace("/", "\\"), *cmd[3:]]
     res = subprocess.run(cmd, input=stdin, capture_output=True, text=True, timeout=120,
-                         env={**os.environ, "WINEDEBUG": "-all"})  # fmt: skip
+                         env={**os.environ, "WINEDEBUG": "-all",
+                              # a fresh prefix must not try to install Mono / Gecko (dialogs)
+                              "WINEDLLOVERRIDES": "mscoree,mshtml="})  # fmt: skip
     assert res.returncode == 0, res.stderr
     table = np.array([[float(x) for x in line.split()] for line in res.stdout.splitlines()])
     names = REAL_OUT + BOOL_OUT
