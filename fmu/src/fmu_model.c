@@ -325,29 +325,17 @@ static int lookup(gf_instance_t *inst, const char *fn, int type, unsigned int vr
     return GF_OK;
 }
 
-/* a tunable parameter in step mode: stored like any parameter, then the core parameters are
- * regenerated from the values and only the tunable fields taken over (the rest of the core's
- * parameters and its state stay as initialised) */
-static int set_tunable(gf_instance_t *inst, const char *fn, const gf_var_t *var,
-                       unsigned int vr, double x) {
+/* a tunable parameter changed in step mode: the core parameters are regenerated from the
+ * values and only the tunable fields taken over (the rest of the core's parameters and its
+ * state stay as initialised) */
+static void apply_tunable(gf_instance_t *inst) {
     gc_params_t p;
-    int st = GF_OK;
-    if (!isfinite(x)) {
-        gf_log(inst, GF_ERROR, "%s: parameter %s = %g is not finite: rejected", fn, var->name, x);
-        return GF_ERROR;
-    }
-    if (x < var->min || x > var->max) {
-        double c = x < var->min ? var->min : var->max;
-        gf_log(inst, GF_WARNING, "%s: %s = %g outside [%g, %g]: clamped to %g", fn, var->name, x,
-               var->min, var->max, c);
-        x = c;
-        st = GF_WARNING;
-    }
-    inst->v[vr] = x;
-    gf_core_params(inst->v, &p);         /* generated (grasp_fmu_config.h) */
-    GF_COPY_TUNABLE(&inst->p, &p);       /* generated from the tunable variables */
-    return st;
+    gf_core_params(inst->v, &p);   /* generated (grasp_fmu_config.h) */
+    GF_COPY_TUNABLE(&inst->p, &p); /* generated from the tunable variables */
 }
+
+static int store_value(gf_instance_t *inst, const char *fn, int type, const gf_var_t *var,
+                       unsigned int vr, double x);
 
 int gf_set_value(gf_instance_t *inst, const char *fn, int type, unsigned int vr, double x) {
     const gf_var_t *var;
@@ -363,8 +351,17 @@ int gf_set_value(gf_instance_t *inst, const char *fn, int type, unsigned int vr,
                                "ExitInitializationMode (or reset the instance)", fn, var->name);
         return GF_ERROR;
     }
-    if (var->causality == GF_PARAMETER && inst->state == GF_STEP)
-        return set_tunable(inst, fn, var, vr, x);
+    if (var->causality == GF_PARAMETER && inst->state == GF_STEP) {
+        int st = store_value(inst, fn, type, var, vr, x); /* the checks of any parameter */
+        if (st <= GF_WARNING) apply_tunable(inst);
+        return st;
+    }
+    return store_value(inst, fn, type, var, vr, x);
+}
+
+/* store one value after the checks of its type and causality (rejected: not stored) */
+static int store_value(gf_instance_t *inst, const char *fn, int type, const gf_var_t *var,
+                       unsigned int vr, double x) {
     if (type == GF_BOOLEAN) {
         inst->v[vr] = x != 0.0;
         return GF_OK;
