@@ -20,7 +20,7 @@ import numpy as np
 from grasprom.pipeline.result import CosimResult
 
 if TYPE_CHECKING:
-    from grasprom.control import ControllerParams, DeviceParams, HandParams
+    from grasprom.control import ControllerParams, DeviceParams, HandParams, ImpedanceController
     from grasprom.surrogate import Surrogate
 
 COLUMNS = ("time_s", "theta_deg", "torque_Nm", "force_tissue_N", "force_jaw_N",
@@ -218,11 +218,11 @@ class OperatorGrip:
         return tau / self.grip_radius_m
 
 
-def static_handle_force_N(params: ControllerParams, surrogate: Surrogate, theta: float) -> float:
-    """Rendered handle force at rest at the angle ``theta`` (rad), N (fresh controller)."""
-    from grasprom.control import ImpedanceController
+def static_handle_force_N(ctl: ImpedanceController, theta: float) -> float:
+    """Rendered handle force at rest at the angle ``theta`` (rad), N.
 
-    ctl = ImpedanceController(params, surrogate)
+    ``ctl`` is reset to rest at ``theta`` (its tables, e.g. the clipped field, are kept).
+    """
     ctl.reset(theta)
     return ctl.step(theta).force_handle_N
 
@@ -233,12 +233,16 @@ def hold_angle_rad(
     """Handle angle (rad) in ``[lo, hi]`` where the rendered force at rest is ``force_N`` (N).
 
     Bisection (the rendered force grows as the handle closes); ``lo`` if it never gets there.
+    One controller serves every evaluation.
     """
-    if static_handle_force_N(params, surrogate, lo) < force_N:
+    from grasprom.control import ImpedanceController
+
+    ctl = ImpedanceController(params, surrogate)
+    if static_handle_force_N(ctl, lo) < force_N:
         return lo
     for _ in range(40):
         mid = 0.5 * (lo + hi)
-        if static_handle_force_N(params, surrogate, mid) > force_N:
+        if static_handle_force_N(ctl, mid) > force_N:
             lo = mid
         else:
             hi = mid
