@@ -347,6 +347,10 @@ int8_t gf_init(gf_state_t *s, uint8_t material, uint16_t thickness_um);
 /* One controller step with the handle angle in encoder counts. */
 void gf_step(gf_state_t *s, int16_t count, gf_output_t *out);
 
+/* CRC-16/CCITT-FALSE of the PROGMEM tables (chain, then per material x, k, t, y, warn,
+ * active; little-endian bytes): the firmware compares it with the export's GF_TABLE_CRC. */
+uint16_t gf_table_crc(void);
+
 #endif /* GC_TABULATED */
 
 #ifdef __cplusplus

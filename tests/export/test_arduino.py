@@ -285,8 +285,9 @@ def test_export_writes_sketch_that_builds_with_arduino_mk(surrogate, tmp_path):
               "grasp_fixed_tables.h", "Makefile"):  # fmt: skip
         assert (sk / f).is_file(), f
     ino = (sk / "grasprom_controller.ino").read_text()
-    assert "#define MATERIAL 2" in ino and "#define THICKNESS_UM 1650" in ino
-    assert "attachInterrupt" in ino and "analogWrite" in ino
+    fw = (sk / "grasp_firmware.h").read_text()
+    assert "#define GF_BOOT_MATERIAL 2" in fw and "#define GF_BOOT_THICKNESS_UM 1650" in fw
+    assert "ISR(INT0_vect)" in ino and "ISR(TIMER2_COMPA_vect, ISR_NOBLOCK)" in ino
     mk = (sk / "Makefile").read_text()
     assert "BOARD_TAG = uno" in mk and "-DDECIMAL_DIG=__DECIMAL_DIG__" in mk
     need("make", "make")
@@ -434,8 +435,8 @@ def test_clipped_export_on_host_and_avr(surrogate, tmp_path, augmented):
 @pytest.mark.parametrize("rendering", ["coupling", "clipped"])
 def test_error_against_the_rendered_range(surrogate, tmp_path, rendering):
     """Issue 17: the handle-force error in % of the force range the device renders (the largest
-    |handle force| of the reference on the vectors), next to the % of the 100 N full scale.  The
-    default tolerance (1 %) is over the 0.5 % budget on that range; 0.5 % meets it."""
+    |handle force| of the reference on the vectors), next to the % of the 100 N full scale.  A
+    1 % tolerance is over the 0.5 % budget on that range; the default 0.5 % meets it."""
     need("gcc", "gcc")
     p = ControllerParams(rendering=rendering)
     fs = p.torque_limit_Nm / (p.pulley_radius_mm * 1e-3)
@@ -467,7 +468,8 @@ def test_clipped_export_says_its_rendering_and_measures_the_budget(surrogate, tm
     for text in (ino, readme):
         assert "stiffness-clipped field" in text and "rendering='clipped'" in text
         assert "virtual coupling (rendering='coupling'" not in text
-    assert "#define MATERIAL 2" in ino and "#define THICKNESS_UM 2000" in ino
+    fw = (sk / "grasp_firmware.h").read_text()
+    assert "#define GF_BOOT_MATERIAL 2" in fw and "#define GF_BOOT_THICKNESS_UM 2000" in fw
     assert "rendering clipped" in res.summary() and "rendered range" in res.summary()
     assert res.rendering == "clipped" and res.notes == [] and res.within_budget()
     assert res.error_handle_pct_rendered is not None and res.rendered_max_N is not None

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import shutil
+import struct
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -109,6 +110,24 @@ class FixedTables:
     def nx_max(self) -> int:
         """Largest grid of any material (size of the RAM node table)."""
         return max(len(m.x) for m in self.materials)
+
+    def table_crc(self) -> int:
+        """CRC-16/CCITT-FALSE of the PROGMEM tables, as ``gf_table_crc()`` computes it.
+
+        Bytes in the order of the core: ``gf_ch_a``, ``gf_ch_b``, then per material the grid,
+        the segment widths, the thicknesses, the node values, the warning and active thresholds
+        (little-endian, as on the AVR and the host).
+        """
+        buf = struct.pack(f"<{len(self.ch_a)}H", *self.ch_a)
+        buf += struct.pack(f"<{len(self.ch_b)}h", *self.ch_b)
+        for m in self.materials:
+            flat = [v for row in m.y for v in row]
+            buf += struct.pack(f"<{len(m.x)}H", *m.x) + bytes(m.k)
+            buf += struct.pack(f"<{len(m.thickness_um)}H", *m.thickness_um)
+            buf += struct.pack(f"<{len(flat)}H", *flat)
+            buf += struct.pack(f"<{len(m.warn)}h", *m.warn)
+            buf += struct.pack(f"<{len(m.active)}h", *m.active)
+        return crc16_ccitt(buf)
 
     @property
     def table_bytes(self) -> int:
@@ -270,6 +289,27 @@ class FixedTables:
         return "\n".join(out) + "\n"
 
 
+def crc16_ccitt(data: bytes, crc: int = 0xFFFF) -> int:
+    """CRC-16/CCITT-FALSE (polynomial 0x1021, initial 0xFFFF, no reflection, no final XOR).
+
+    Parameters
+    ----------
+    data : bytes
+    crc : int
+        Initial value (continue a CRC).
+
+    Returns
+    -------
+    int
+        16-bit CRC (``crc16_ccitt(b"123456789") == 0x29B1``).
+    """
+    for byte in data:
+        crc ^= byte << 8
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x1021) & 0xFFFF if crc & 0x8000 else (crc << 1) & 0xFFFF
+    return crc
+
+
 def _dyadic_grid(curves: NDArray, eps: float, n_span: int) -> tuple[list[int], list[int]]:
     """Dyadic breakpoints (offsets from 0) reproducing every row of ``curves`` within ``eps``.
 
@@ -321,8 +361,42 @@ class _RawCurves:
     active: list[int]
 
 
+def _thickness_refined_curves(
+    params: ControllerParams, surrogate: Surrogate, name: str, theta: NDArray, tol: float
+) -> dict[float, tuple[NDArray, NDArray]]:
+    """Rendered jaw force (N) and the active flag on ``theta`` at thickness nodes that make the
+    core's linear blend in thickness (``gf_init``) hold within ``tol`` of the curves' largest
+    force: the surrogate's thickness nodes, plus midpoints (down to 1/8 of an interval) where
+    the midpoint curve differs from the blend of its neighbours by more than that."""
+
+    def curve(t: float) -> tuple[NDArray, NDArray]:
+        fg, act, _gp = rendered_jaw_force(params, surrogate, name, float(t), theta)
+        fg[-1] = 0.0  # n_contact: no contact
+        return fg, act
+
+    ts = [float(t) for t in surrogate.thicknesses(name)]
+    out = {t: curve(t) for t in ts}
+    eps = tol * max(float(v[0].max()) for v in out.values())
+    todo = [(a, b, 0) for a, b in zip(ts[:-1], ts[1:])]
+    while todo:
+        a, b, depth = todo.pop()
+        m = round(0.5 * (a + b), 6)
+        out[m] = curve(m)
+        blend = 0.5 * (out[a][0] + out[b][0])
+        if np.max(np.abs(out[m][0] - blend)) > eps and depth < 2:
+            todo += [(a, m, depth + 1), (m, b, depth + 1)]
+        elif np.max(np.abs(out[m][0] - blend)) <= eps:
+            del out[m]  # the blend holds: no node needed
+    return out
+
+
 def _jaw_force_curves(
-    surrogate: Surrogate, params: ControllerParams, q: float, n_lo: int, n_contact: int
+    surrogate: Surrogate,
+    params: ControllerParams,
+    q: float,
+    n_lo: int,
+    n_contact: int,
+    tol: float = 0.005,
 ) -> tuple[list[_RawCurves], float]:
     """Rendered jaw force per material and thickness node, flag thresholds, and the largest
     jaw force (N, the jaw-force full scale).
@@ -339,11 +413,11 @@ def _jaw_force_curves(
     mats_raw = []
     fg_max = 0.0
     for name in MATERIAL_NAMES:
-        ts = surrogate.thicknesses(name)
+        curves = _thickness_refined_curves(params, surrogate, name, cn * q, tol)
+        ts = np.array(sorted(curves))
         rows, warn, active = [], [], []
         for t in ts:
-            fg, act, _gp = rendered_jaw_force(params, surrogate, name, float(t), cn * q)
-            fg[-1] = 0.0  # n_contact: no contact
+            fg, act = curves[t]
             rows.append(fg)
             f_t = sc * surrogate.force(g_c, t, name)
             area = params.jaw_length_mm * 0.5 * math.pi * (params.diameter_mm - t)
@@ -504,7 +578,7 @@ def build_tables(
         raise ValueError(
             "the float build renders no backlash, friction or viscoelasticity: use fixed point"
         )
-    mats_raw, fg_max = _jaw_force_curves(surrogate, params, q, n_lo, n_contact)
+    mats_raw, fg_max = _jaw_force_curves(surrogate, params, q, n_lo, n_contact, tol)
     materials, fg_shift = _material_tables(mats_raw, fg_max, tol, n_lo, n_contact - n_lo)
     ch_shift, ch_a, ch_b = _chain_tables(params, q, n_lo, n_top, fg_max, tol * fg_max)
     augmented_constants = _augmented_constants(params, q, fg_max)
