@@ -643,8 +643,36 @@ def _add_export_parser(sub) -> None:
     a.add_argument(
         "--tol",
         type=float,
-        default=0.01,
-        help="table tolerance, fraction of the largest rendered jaw force (default 0.01)",
+        default=0.005,
+        help="table tolerance, fraction of the largest rendered jaw force (default 0.005: "
+        "handle-force error within 0.5 %% of the rendered range)",
+    )
+    a.add_argument(
+        "--driver",
+        choices=("pwm_dir", "in1_in2", "lap"),
+        default=None,
+        help="motor bridge inputs: PWM + DIR (default), IN1/IN2 (DRV8871), locked anti-phase "
+        "(L298N)",
+    )
+    a.add_argument(
+        "--homing",
+        choices=("endstop", "index"),
+        default=None,
+        help="home on an end-stop switch (default, handle open) or the encoder's index pulse",
+    )
+    a.add_argument(
+        "--pwm-hz",
+        type=float,
+        default=None,
+        metavar="HZ",
+        help="motor PWM frequency, 16000 .. 31250 Hz (default 20000)",
+    )
+    a.add_argument(
+        "--firmware",
+        default=None,
+        metavar="JSON",
+        help="firmware configuration: JSON with the fields of FirmwareConfig (pins, "
+        "home_count, timeouts, watchdog_ms, baud, ...); --driver/--homing/--pwm-hz win",
     )
     a.add_argument(
         "--float", dest="fixed_point", action="store_false", help="float build instead of Q-format"
@@ -664,6 +692,39 @@ def _add_augmented_export(p) -> None:
     )
 
 
+def _firmware_option(args: argparse.Namespace):
+    """The :class:`FirmwareConfig` of ``export arduino`` (``--firmware`` JSON + flags)."""
+    import dataclasses
+    import json
+
+    from grasprom.export.arduino import FirmwareConfig, FirmwareError
+
+    fields: dict = {}
+    if args.firmware:
+        try:
+            with open(args.firmware, encoding="utf-8") as f:
+                fields = json.load(f)
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"--firmware {args.firmware}: not JSON ({exc})") from None
+        if not isinstance(fields, dict):
+            raise ValueError(f"--firmware {args.firmware}: expected a JSON object")
+        known = {f.name for f in dataclasses.fields(FirmwareConfig)}
+        unknown = sorted(set(fields) - known)
+        if unknown:
+            raise ValueError(
+                f"--firmware {args.firmware}: unknown field(s) {', '.join(unknown)} "
+                f"(known: {', '.join(sorted(known))})"
+            )
+    for key, val in (("driver", args.driver), ("homing", args.homing), ("pwm_hz", args.pwm_hz)):
+        if val is not None:
+            fields[key] = val
+    try:
+        return FirmwareConfig(**fields)
+    except FirmwareError as exc:
+        where = f"--firmware {args.firmware}" if args.firmware else "firmware"
+        raise ValueError(f"{where}: {exc}") from None
+
+
 def _cmd_export(args: argparse.Namespace) -> int:
     from grasprom.control import ControllerParams, apply_device, load_params
 
@@ -681,7 +742,12 @@ def _cmd_export(args: argparse.Namespace) -> int:
             from grasprom.export import export_main
 
             return export_main(
-                args.out, surrogate=sur, params=params, tol=args.tol, fixed_point=args.fixed_point
+                args.out,
+                surrogate=sur,
+                params=params,
+                tol=args.tol,
+                fixed_point=args.fixed_point,
+                firmware=_firmware_option(args),
             )
         from grasprom.export import export_fmu
         from grasprom.export.fmu import write_demo_input

@@ -8,10 +8,10 @@ Two layouts are served by the same functions:
   ``grasprom/_shipped/fmu`` and ``grasprom/_shipped/fe_data`` (see ``setup.py``), so nothing
   is downloaded and nothing depends on the current directory.
 
-The C tree (``fmu/``) has three folders: ``include/`` (headers), ``src/`` (the controller core
-and the FMU model with its FMI 2 / FMI 3 wrappers) and ``harness/`` (drivers and test mains: the
-FMU's C driver, the ctypes shim, the fixed-point test main and the simavr harness that the
-Arduino budget measurement runs).
+The C tree (``fmu/``) has four folders: ``include/`` (headers), ``src/`` (the controller core
+and the FMU model with its FMI 2 / FMI 3 wrappers), ``harness/`` (drivers and test mains: the
+FMU's C driver, the ctypes shim, the fixed-point test main and the simavr harnesses of the
+Arduino budget measurement and of the firmware tests) and ``arduino/`` (the firmware sketch).
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from pathlib import Path
 PACKAGE_DIR = Path(__file__).resolve().parent
 """The installed ``grasprom`` package."""
 
-C_SUBDIRS = ("include", "src", "harness")
+C_SUBDIRS = ("include", "src", "harness", "arduino")
 """Folders of the C tree, searched in this order by :func:`c_file`."""
 
 DEFAULT_SWEEP_DIR = "fe_data/default"
