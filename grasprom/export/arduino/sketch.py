@@ -333,9 +333,8 @@ def export_arduino(
     protocol; see :mod:`.firmware`), its generated configuration ``grasp_firmware.h``, the
     core (``grasp_core.c/.h``, the FMU's core) with the generated ``grasp_build.h``,
     ``grasp_fixed_config.h`` and ``grasp_fixed_tables.h`` (PROGMEM, fixed point, units and
-    grids in the comments), a ``Makefile`` for Debian's arduino-mk, ``build_arduino_builder.sh``
-    for arduino-builder and a ``README.md`` (wiring, safety, protocol).  Everything is checked
-    before anything is written, and the folder appears complete or not at all.
+    grids in the comments), a ``Makefile`` (arduino-mk), ``build_arduino_builder.sh`` and a
+    ``README.md``.  All is checked first; the folder appears complete or not at all.
 
     Parameters
     ----------
@@ -364,33 +363,14 @@ def export_arduino(
     ArduinoExport
     """
     if params.passivity_observer:
-        msg = "the Arduino fixed-point build does not render the passivity observer"
-        raise ValueError(f"{msg}: export with passivity_observer=False (the FMU renders it)")
-    fw = firmware if firmware is not None else FirmwareConfig()
+        raise ValueError("the Arduino fixed-point build does not render the passivity observer: "
+                         "export with passivity_observer=False (the FMU renders it)")  # fmt: skip
+    fw = firmware or FirmwareConfig()
     control_timer(params.sample_time_s)  # a period Timer2 can realise, before any work
     tables = build_tables(surrogate, params, tol, fixed_point=fixed_point)
-    header = firmware_header(fw, params, table_crc=tables.table_crc(), version=__version__,
-                             fe_hash=tables.fe_hash)  # fmt: skip
     out = Path(out_dir)
     sk = out / SKETCH_NAME
-    out.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=f".{SKETCH_NAME}.", dir=out))
-    try:
-        write_core(tables, stage)
-        (stage / "grasp_firmware.h").write_text(header)
-        (stage / f"{SKETCH_NAME}.ino").write_text(_sketch_text(params))
-        (stage / "Makefile").write_text(MAKEFILE_TEMPLATE.format(name=SKETCH_NAME))
-        (stage / "build_arduino_builder.sh").write_text(BUILDER_SCRIPT.format(name=SKETCH_NAME))
-        (stage / "README.md").write_text(readme_text(params, tables, fw))
-        for f in stage.iterdir():
-            f.chmod(0o755 if f.suffix == ".sh" else 0o644)
-        stage.chmod(0o755)
-        if sk.exists():
-            shutil.rmtree(sk)
-        stage.rename(sk)
-    finally:
-        if stage.exists():
-            shutil.rmtree(stage, ignore_errors=True)
+    _write_package(sk, tables, fw)
     res = ArduinoExport(
         out_dir=out,
         sketch_dir=sk,
@@ -406,6 +386,36 @@ def export_arduino(
     if measure:
         _measure_into(res, tables, surrogate)
     return res
+
+
+def _write_package(sk: Path, tables: FixedTables, fw: FirmwareConfig) -> None:
+    """Write the sketch folder ``sk`` whole: into a staging folder beside it, renamed at the end
+    (files 0644, the script 0755); a failure leaves no partial folder."""
+    header = firmware_header(fw, tables.params, table_crc=tables.table_crc(),
+                             version=__version__, fe_hash=tables.fe_hash)  # fmt: skip
+    sk.parent.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(prefix=f".{sk.name}.", dir=sk.parent))
+    try:
+        _write_files(stage, tables, header, fw)
+        if sk.exists():
+            shutil.rmtree(sk)
+        stage.rename(sk)
+    finally:
+        if stage.exists():
+            shutil.rmtree(stage, ignore_errors=True)
+
+
+def _write_files(stage: Path, tables: FixedTables, header: str, fw: FirmwareConfig) -> None:
+    params = tables.params
+    write_core(tables, stage)
+    (stage / "grasp_firmware.h").write_text(header)
+    (stage / f"{SKETCH_NAME}.ino").write_text(_sketch_text(params))
+    (stage / "Makefile").write_text(MAKEFILE_TEMPLATE.format(name=SKETCH_NAME))
+    (stage / "build_arduino_builder.sh").write_text(BUILDER_SCRIPT.format(name=SKETCH_NAME))
+    (stage / "README.md").write_text(readme_text(params, tables, fw))
+    for f in stage.iterdir():
+        f.chmod(0o755 if f.suffix == ".sh" else 0o644)
+    stage.chmod(0o755)
 
 
 def _sketch_text(params: ControllerParams) -> str:
