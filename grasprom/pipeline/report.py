@@ -360,10 +360,11 @@ def _arduino_rows(a: ArduinoExport) -> list[list[Any]]:
         ["RAM static + step stack (B)", _fmt(a.ram_B, "d"), RAM_BUDGET_B],
         ["cycles per step, max", _fmt(a.cycles_max, "d"), CYCLE_BUDGET],
         [
-            "handle-force error (% FS)",
-            _fmt(a.error_handle_pct_fs, ".3f"),
+            f"handle-force error (% of the rendered range {_fmt(a.rendered_max_N, '.3g')} N)",
+            _fmt(a.error_handle_pct_rendered, ".3f"),
             f"{100 * ERROR_BUDGET:g}",
         ],
+        ["handle-force error (% of motor FS)", _fmt(a.error_handle_pct_fs, ".3f"), ""],
         ["jaw-force error (% of jaw FS)", _fmt(a.error_jaw_pct_fs, ".3f"), ""],
         ["tables (B)", a.table_bytes, ""],
         ["grid nodes", ", ".join(f"{k} {v}" for k, v in a.grid_nodes.items()), ""],
@@ -464,7 +465,8 @@ def summary(res: BuildResult) -> str:
         a = res.arduino
         lines.append(f"  arduino: flash {_fmt(a.flash_B, 'd')} B, RAM {_fmt(a.ram_B, 'd')} B, "
                      f"cycles {_fmt(a.cycles_max, 'd')}, handle-force error "
-                     f"{_fmt(a.error_handle_pct_fs, '.3f')} % FS")  # fmt: skip
+                     f"{_fmt(a.error_handle_pct_rendered, '.3f')} % of the rendered "
+                     "range")  # fmt: skip
     if res.cosim is not None:
         lines.append(
             f"  co-simulation: max jaw force {res.cosim.col('force_jaw_N').max():.2f} N,"

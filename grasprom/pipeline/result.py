@@ -149,9 +149,12 @@ def _tuning_figures(tuning: TuningResult) -> dict[str, Any]:
 
 
 def _arduino_figures(a: ArduinoExport) -> dict[str, Any]:
-    """Flash and RAM (B), cycles per step, errors (% FS) and notes of an Arduino export."""
+    """Flash and RAM (B), cycles per step, errors (% FS, % of the rendered range) and notes of an
+    Arduino export."""
     return {"flash_B": a.flash_B, "ram_B": a.ram_B, "cycles_max": a.cycles_max,
             "cycles_mean": a.cycles_mean, "error_handle_pct_fs": a.error_handle_pct_fs,
+            "error_handle_pct_rendered": a.error_handle_pct_rendered,
+            "rendered_max_N": a.rendered_max_N,
             "error_jaw_pct_fs": a.error_jaw_pct_fs, "table_bytes": a.table_bytes,
             "within_budget": a.within_budget(), "notes": list(a.notes)}  # fmt: skip
 
