@@ -223,7 +223,7 @@ static void watchdog_start(void) {
 }
 
 // ------------------------------------------------------------------------------ serial I/O
-static const char MAT_NAMES[3][3] = {"mr", "nh", "le"};
+static const char MAT_NAMES[GF_N_MATERIALS][GF_MATERIAL_NAME_LEN] = GF_MATERIAL_NAMES;
 static char line[32];
 static uint8_t line_n = 0;
 static uint8_t line_long = 0;
@@ -301,7 +301,7 @@ static void command(char *s) {
       status_line();
       return;
     case 'M':
-      for (uint8_t i = 0; i < 3; ++i) {
+      for (uint8_t i = 0; i < GF_N_MATERIALS; ++i) {
         if (strcmp(arg, MAT_NAMES[i]) == 0) {
           if (select_case(i, thickness_um) == 0) {
             Serial.print(F("OK M "));
@@ -314,7 +314,7 @@ static void command(char *s) {
       }
       Serial.print(F("ERR M unknown material '"));
       Serial.print(arg);
-      Serial.println(F("' (mr, nh, le)"));
+      Serial.println(F("' (" GF_MATERIAL_LIST ")"));
       return;
     case 'T':
       v = strtol(arg, &end, 10);
@@ -384,7 +384,7 @@ static void command(char *s) {
   }
   Serial.print(F("ERR unknown command '"));
   Serial.print(s);
-  Serial.println(F("' (? M T S R C H)"));
+  Serial.println(F("' (" GF_COMMAND_LIST ")"));
 }
 
 // ------------------------------------------------------------------------------------ main

@@ -53,7 +53,6 @@ static avr_t *g_avr;
 static FILE *g_uart, *g_samples, *g_scope, *g_resets;
 static void (*g_mcu_reset)(struct avr_t *avr);
 static int g_was_reset;
-static int g_level[3][8]; /* last level driven on ports B, C, D (-1: never) */
 static int g_uart_bol = 1;
 static unsigned long long g_scope_rise;
 /* encoder: waypoints (cycle, raw), starting at (0, 0), and the current position */
@@ -189,6 +188,11 @@ static int load_script(const char *path) {
             a->port = buf[used];
             a->a = strtol(buf + used + 1, NULL, 10);
             a->b = strtol(buf + used + 3, NULL, 10);
+            if (a->port < 'B' || a->port > 'D' || a->a < 0 || a->a > 7) {
+                fprintf(stderr, "bad pin (ports B, C, D, bits 0-7): %s", buf);
+                fclose(f);
+                return -1;
+            }
         } else if (strcmp(a->kind, "flash") == 0) {
             char *e;
             a->a = strtol(buf + used, &e, 0);
@@ -211,8 +215,6 @@ static int load_script(const char *path) {
 
 static void apply(const action_t *a) {
     if (strcmp(a->kind, "pin") == 0) {
-        if (a->port >= 'B' && a->port <= 'D' && a->a >= 0 && a->a < 8)
-            g_level[a->port - 'B'][a->a] = (int)a->b;
         drive_pin(a->port, (int)a->a, (int)a->b);
     } else if (strcmp(a->kind, "send") == 0) {
         queue_text(a->text);
@@ -238,7 +240,6 @@ int main(int argc, char **argv) {
         fprintf(stderr, "usage: %s FIRMWARE.elf SCRIPT OUTDIR SCOPE_PORT SCOPE_BIT\n", argv[0]);
         return 2;
     }
-    memset(g_level, 0xFF, sizeof g_level);
     if (load_script(argv[2]) != 0) return 2;
     for (i = 0; i < g_n; ++i) if (strcmp(g_act[i].kind, "end") == 0) end = g_act[i].cycle;
     if (!end) { fprintf(stderr, "the script has no 'end'\n"); return 2; }
@@ -278,17 +279,15 @@ int main(int argc, char **argv) {
         while (g_next < g_n && g_act[g_next].cycle <= g_avr->cycle) apply(&g_act[g_next++]);
         state = avr_run(g_avr);
         if (g_was_reset) {
-            g_was_reset = 0;
             int pt, bt;
+            g_was_reset = 0;
             start_timers();
-            g_ab = -1;
-            set_ab((uint8_t)(SEQ[((g_pos % 4) + 4) % 4] ^ 3u));
-            set_ab(SEQ[((g_pos % 4) + 4) % 4]);
             for (pt = 0; pt < 3; ++pt) /* the outside world keeps its levels over a reset */
                 for (bt = 0; bt < 8; ++bt)
-                    if (g_level[pt][bt] >= 0) { /* toggled: an unchanged value is filtered */
-                        drive_pin((char)('B' + pt), bt, !g_level[pt][bt]);
-                        drive_pin((char)('B' + pt), bt, g_level[pt][bt]);
+                    if (g_ext_mask[pt] >> bt & 1u) { /* toggled: an unchanged value is filtered */
+                        int v = g_ext_value[pt] >> bt & 1u;
+                        drive_pin((char)('B' + pt), bt, !v);
+                        drive_pin((char)('B' + pt), bt, v);
                     }
         }
         if (state == cpu_Crashed) break;

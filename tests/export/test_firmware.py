@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
+import shutil
 import subprocess
 from pathlib import Path
 
@@ -62,6 +63,13 @@ class Built:
 
     def run(self, script: sb.BenchScript, end_ms: float, tmp: Path) -> sb.BenchRun:
         return sb.run_bench(self.elf, script, end_ms, tmp, self.config)
+
+
+def copy_sketch(b: Built, tmp: Path) -> Path:
+    """A fresh copy of an exported sketch folder (without its build output)."""
+    sk = tmp / "grasprom_controller"
+    shutil.copytree(b.sketch, sk, ignore=shutil.ignore_patterns("build-*"))
+    return sk
 
 
 def build(surrogate, tmp: Path, params=None, **fw) -> Built:
@@ -400,10 +408,7 @@ def test_locked_anti_phase_driver(surrogate, tmp_path):
 
 def test_pin_checks_at_compile_time(fw, tmp_path):
     """Editing the generated pins into a conflict stops the build with the header's #error."""
-    import shutil
-
-    sk = tmp_path / "grasprom_controller"
-    shutil.copytree(fw.sketch, sk, ignore=shutil.ignore_patterns("build-*"))
+    sk = copy_sketch(fw, tmp_path)
     h = sk / "grasp_firmware.h"
     h.write_text(h.read_text().replace("#define GF_PIN_HOME 4", "#define GF_PIN_HOME 12"))
     with pytest.raises(RuntimeError, match="GF_PIN_SCOPE and GF_PIN_HOME are the same pin"):
@@ -412,10 +417,7 @@ def test_pin_checks_at_compile_time(fw, tmp_path):
 
 def test_sketch_builds_with_arduino_builder(fw, tmp_path):
     need("arduino-builder", "arduino-builder")
-    import shutil
-
-    sk = tmp_path / "grasprom_controller"
-    shutil.copytree(fw.sketch, sk, ignore=shutil.ignore_patterns("build-*"))
+    sk = copy_sketch(fw, tmp_path)
     res = subprocess.run(
         ["sh", "build_arduino_builder.sh"], cwd=sk, capture_output=True, text=True, timeout=600
     )

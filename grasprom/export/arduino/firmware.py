@@ -205,10 +205,19 @@ class FirmwareConfig:
         return int(round(F_CPU_HZ / self.pwm_hz)) - 1
 
     @property
+    def pwm_frequency_hz(self) -> float:
+        """Realised PWM frequency (Hz): ``16 MHz / (ICR1 + 1)``."""
+        return F_CPU_HZ / (self.pwm_top + 1)
+
+    @property
+    def duty_levels(self) -> int:
+        """Duty levels of one direction (``lap``: half the period, 50 % = zero torque)."""
+        return self.pwm_top + 1 if self.driver != "lap" else (self.pwm_top + 1) // 2
+
+    @property
     def pwm_bits(self) -> float:
         """Duty resolution (bits): log2 of the levels of one direction."""
-        levels = self.pwm_top + 1 if self.driver != "lap" else (self.pwm_top + 1) // 2
-        return math.log2(levels)
+        return math.log2(self.duty_levels)
 
     @property
     def enable(self) -> int | None:
@@ -360,9 +369,8 @@ def _pin_macros(prefix: str, pin: int) -> list[str]:
 def _duty_scaling(c: FirmwareConfig, params: ControllerParams) -> tuple[int, int, int, int]:
     """Handle force at the torque limit (mN), duty levels per direction, and the multiplier /
     shift with ``duty = |Fi mN| * mul >> shift`` (no division in the interrupt)."""
-    top = c.pwm_top
     fi_limit_mN = round(params.torque_limit_Nm / (params.pulley_radius_mm * 1e-3) * 1e3)
-    levels = top + 1 if c.driver != "lap" else (top + 1) // 2
+    levels = c.duty_levels
     shift = 30 - levels.bit_length()  # |Fi| <= Fi limit: |Fi| x mul < 2^30
     mul = round(levels * (1 << shift) / fi_limit_mN)
     if mul < 1024:
@@ -398,7 +406,6 @@ def firmware_header(config: FirmwareConfig, params: ControllerParams, *, table_c
     def steps(ms: float) -> int:
         return max(1, int(math.ceil(ms * 1e-3 * rate)))
 
-    top = c.pwm_top
     fi_limit_mN, levels, mul, shift = _duty_scaling(c, params)
     home_count = "GF_N_TOP" if c.home_count is None else str(c.home_count)
     lines = [
@@ -413,9 +420,9 @@ def firmware_header(config: FirmwareConfig, params: ControllerParams, *, table_c
         f"#define GF_DRIVER_{c.driver.upper()} 1",
         f"#define GF_HOMING_{c.homing.upper()} 1",
         "",
-        f"/* motor PWM: Timer1 fast PWM (mode 14), {F_CPU_HZ / (top + 1):g} Hz, "
+        f"/* motor PWM: Timer1 fast PWM (mode 14), {c.pwm_frequency_hz:g} Hz, "
         f"{levels} levels per direction ({c.pwm_bits:.2f} bits) */",
-        f"#define GF_PWM_TOP {top}u",
+        f"#define GF_PWM_TOP {c.pwm_top}u",
         f"/* duty counts = |Fi mN| * GF_DUTY_MUL >> GF_DUTY_SHIFT (Fi limit {fi_limit_mN} mN = "
         f"{levels} counts) */",
         f"#define GF_DUTY_LEVELS {levels}u",
@@ -443,16 +450,25 @@ def firmware_header(config: FirmwareConfig, params: ControllerParams, *, table_c
         f"#define GF_BAUD {c.baud}UL",
         f"#define GF_BOOT_MATERIAL {MATERIAL_NAMES.index(params.material)} /* {params.material} */",
         f"#define GF_BOOT_THICKNESS_UM {round(params.thickness_mm * 1000)}",
+        "#define GF_MATERIAL_NAMES {" + ", ".join(f'"{m}"' for m in MATERIAL_NAMES) + "}",
+        f"#define GF_MATERIAL_NAME_LEN {max(len(m) for m in MATERIAL_NAMES) + 1}",
+        f'#define GF_MATERIAL_LIST "{", ".join(MATERIAL_NAMES)}"',
+        f'#define GF_COMMAND_LIST "{" ".join(cmd.split()[0] for cmd, _ in COMMANDS)}"',
         "",
-        "/* status bits (grasprom.export.arduino.firmware.STATUS_BITS) */",
     ]
-    for s in STATUS_BITS:
-        lines.append(f"#define GF_ST_{s.name.upper()} 0x{1 << s.bit:02X}u /* {s.doc} */")
-    faults = sum(1 << s.bit for s in STATUS_BITS if s.fault)
-    lines += [f"#define GF_ST_FAULTS 0x{faults:02X}u", "", "/* pins */"]
+    lines += _status_lines() + ["", "/* pins */"]
     lines += _pin_lines(c)
     lines += ["", "#endif", ""]
     return "\n".join(lines)
+
+
+def _status_lines() -> list[str]:
+    """``GF_ST_*`` status bits of :data:`STATUS_BITS` and the mask of the latched faults."""
+    lines = ["/* status bits (grasprom.export.arduino.firmware.STATUS_BITS) */"]
+    for s in STATUS_BITS:
+        lines.append(f"#define GF_ST_{s.name.upper()} 0x{1 << s.bit:02X}u /* {s.doc} */")
+    faults = sum(1 << s.bit for s in STATUS_BITS if s.fault)
+    return [*lines, f"#define GF_ST_FAULTS 0x{faults:02X}u"]
 
 
 def _pin_lines(c: FirmwareConfig) -> list[str]:

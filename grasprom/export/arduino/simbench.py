@@ -11,7 +11,6 @@ registers, the interrupt rate, watchdog, homing, serial commands, safe state) re
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,14 +26,8 @@ from grasprom.export.arduino.firmware import (
     StatusLine,
     parse_status_line,
 )
+from grasprom.export.arduino.toolchain import need_tool
 from grasprom.paths import c_file
-
-
-def _need(tool: str, package: str) -> str:
-    path = shutil.which(tool)
-    if path is None:
-        raise RuntimeError(f"{tool} not found (Debian: apt-get install {package})")
-    return path
 
 
 def build_sketch(sketch_dir: str | Path, *, test_hooks: bool = False) -> Path:
@@ -51,8 +44,8 @@ def build_sketch(sketch_dir: str | Path, *, test_hooks: bool = False) -> Path:
     -------
     Path
     """
-    _need("make", "make")
-    _need("avr-gcc", "gcc-avr avr-libc")
+    need_tool("make", "make")
+    need_tool("avr-gcc", "gcc-avr avr-libc")
     if not Path("/usr/share/arduino/Arduino.mk").is_file():
         raise RuntimeError("arduino-mk not found (Debian: apt-get install arduino-mk)")
     d = Path(sketch_dir)
@@ -68,7 +61,7 @@ def build_sketch(sketch_dir: str | Path, *, test_hooks: bool = False) -> Path:
 
 def build_bench_harness(directory: str | Path) -> Path:
     """Compile the libsimavr bench harness (``gf_sketch_harness.c``) with gcc."""
-    _need("gcc", "gcc")
+    need_tool("gcc", "gcc")
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
     exe = d / "gf_sketch_harness"

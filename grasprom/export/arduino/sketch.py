@@ -182,7 +182,6 @@ def readme_text(params: ControllerParams, tables: FixedTables, config: FirmwareC
     pins = "\n".join(f"| {role} | {pin} | |" for role, pin in c.used_pins().items())
     status = "\n".join(f"| `{b.name}` (0x{1 << b.bit:02X}) | {b.doc} |" for b in STATUS_BITS)
     commands = "\n".join(f"| `{cmd}` | {doc} |" for cmd, doc in COMMANDS)
-    levels = c.pwm_top + 1 if c.driver != "lap" else (c.pwm_top + 1) // 2
     home = "GF_N_TOP (the open end)" if c.home_count is None else str(c.home_count)
     return README_TEMPLATE.format(
         name=SKETCH_NAME,
@@ -194,8 +193,8 @@ def readme_text(params: ControllerParams, tables: FixedTables, config: FirmwareC
         driver_text=_DRIVER_TEXT[c.driver],
         torque_limit=params.torque_limit_Nm,
         fi_limit=fi_limit,
-        pwm_hz=16e6 / (c.pwm_top + 1),
-        levels=levels,
+        pwm_hz=c.pwm_frequency_hz,
+        levels=c.duty_levels,
         bits=c.pwm_bits,
         rate=control_timer(params.sample_time_s).rate_hz,
         status=status,
@@ -302,7 +301,7 @@ class ArduinoExport:
         lines = [
             f"Arduino export ({'fixed point' if self.fixed_point else 'float'}, tol {self.tol:g},"
             f" rendering {self.rendering}) -> {self.sketch_dir}",
-            f"  firmware: driver {fw.driver}, PWM {16e6 / (fw.pwm_top + 1):g} Hz "
+            f"  firmware: driver {fw.driver}, PWM {fw.pwm_frequency_hz:g} Hz "
             f"({fw.pwm_bits:.2f} bits), homing {fw.homing}, watchdog {fw.watchdog_ms} ms",
             f"  flash tables+core: {f(self.flash_B, ' B', FLASH_BUDGET_B)}; "
             f"tables {self.table_bytes} B, grid nodes {self.grid_nodes}",

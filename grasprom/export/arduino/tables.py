@@ -382,11 +382,11 @@ def _thickness_refined_curves(
         a, b, depth = todo.pop()
         m = round(0.5 * (a + b), 6)
         out[m] = curve(m)
-        blend = 0.5 * (out[a][0] + out[b][0])
-        if np.max(np.abs(out[m][0] - blend)) > eps and depth < 2:
-            todo += [(a, m, depth + 1), (m, b, depth + 1)]
-        elif np.max(np.abs(out[m][0] - blend)) <= eps:
+        err = float(np.max(np.abs(out[m][0] - 0.5 * (out[a][0] + out[b][0]))))
+        if err <= eps:
             del out[m]  # the blend holds: no node needed
+        elif depth < 2:
+            todo += [(a, m, depth + 1), (m, b, depth + 1)]
     return out
 
 

@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from grasprom.control import ControllerParams, ImpedanceController
+from grasprom.export.arduino.firmware import F_CPU_HZ
 from grasprom.export.arduino.reference import encoder_quantum_rad
 from grasprom.export.arduino.tables import FixedTables, write_core
 from grasprom.export.arduino.vectors import (
@@ -36,7 +37,6 @@ from grasprom.paths import c_file
 from grasprom.surrogate import Surrogate
 
 MCU = "atmega328p"
-F_CPU_HZ = 16_000_000
 
 
 def _run(cmd: list[str], what: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
@@ -48,7 +48,8 @@ def _run(cmd: list[str], what: str, cwd: Path | None = None) -> subprocess.Compl
     return res
 
 
-def _need(tool: str, package: str) -> str:
+def need_tool(tool: str, package: str) -> str:
+    """Path of ``tool``; a RuntimeError naming the Debian package when it is missing."""
     path = shutil.which(tool)
     if path is None:
         raise RuntimeError(f"{tool} not found (Debian: apt-get install {package})")
@@ -57,7 +58,7 @@ def _need(tool: str, package: str) -> str:
 
 def run_host(tables: FixedTables, cases: Sequence[VectorCase], directory: str | Path) -> CoreRun:
     """Build the core + test driver for the host (gcc -Wall -Wextra -Werror) and run it."""
-    _need("gcc", "gcc")
+    need_tool("gcc", "gcc")
     d = Path(directory)
     write_core(tables, d)
     shutil.copy(c_file("gf_test_main.c"), d / "gf_test_main.c")
@@ -76,7 +77,7 @@ def build_avr_test(
     tables: FixedTables, cases: Sequence[VectorCase], directory: str | Path, mcu: str = MCU
 ) -> Path:
     """Cross-compile the core + test driver (vectors in flash) with avr-gcc; returns the ELF."""
-    _need("avr-gcc", "gcc-avr avr-libc")
+    need_tool("avr-gcc", "gcc-avr avr-libc")
     d = Path(directory)
     write_core(tables, d)
     shutil.copy(c_file("gf_test_main.c"), d / "gf_test_main.c")
@@ -90,7 +91,7 @@ def build_avr_test(
 
 def build_harness(directory: str | Path) -> Path:
     """Compile the libsimavr harness (:file:`gf_simavr_harness.c`) with gcc."""
-    _need("gcc", "gcc")
+    need_tool("gcc", "gcc")
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
     exe = d / "gf_simavr_harness"
@@ -170,8 +171,8 @@ def _size_over_empty(
 
 def measure_size(tables: FixedTables, directory: str | Path) -> SizeFigures:
     """Flash/RAM of the core + tables: a minimal firmware with and without the core."""
-    _need("avr-gcc", "gcc-avr avr-libc")
-    _need("avr-size", "binutils-avr")
+    need_tool("avr-gcc", "gcc-avr avr-libc")
+    need_tool("avr-size", "binutils-avr")
     d = Path(directory)
     write_core(tables, d)
     flash, static = _size_over_empty(
@@ -266,8 +267,8 @@ def run_runtime_avr(
     surrogate curves go to flash (``GC_TABLE`` = PROGMEM).  Outputs are compared with
     :class:`grasprom.control.ImpedanceController` (double) on the same encoder counts.
     """
-    _need("avr-gcc", "gcc-avr avr-libc")
-    _need("avr-size", "binutils-avr")
+    need_tool("avr-gcc", "gcc-avr avr-libc")
+    need_tool("avr-size", "binutils-avr")
     d = Path(directory)
     elf, flash = _build_runtime_avr(surrogate, params, cases, d, mcu)
     data, cycles = _simavr_bytes(elf, d, mcu)
