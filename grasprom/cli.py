@@ -753,14 +753,15 @@ def _cmd_export(args: argparse.Namespace) -> int:
         from grasprom.export.fmu import write_demo_input
 
         out = export_fmu(args.out, params, sur, fmi_version=args.fmi)
-        demo = write_demo_input(out.with_name(out.stem + "_input.csv"), params)
+        demo = write_demo_input(out.with_name(out.stem + "_input.csv"), params, sur)
     except (OSError, ValueError, RuntimeError) as exc:
         return _error(f"export {args.export_command}", exc)
     print(
         f"grasprom export fmu: {out} (FMI {args.fmi}.0 co-simulation, "
         f"{out.stat().st_size / 1024:.0f} KiB, {params.material} {params.thickness_mm:g} mm)"
     )
-    print(f"  quick look: fmpy simulate {out} --input-file {demo} --show-plot  (needs plotly)")
+    print(f"  quick look: fmpy simulate {out} --input-file {demo} --show-plot")
+    print("  (--show-plot needs plotly: pip install 'grasprom[plot]')")
     return 0
 
 

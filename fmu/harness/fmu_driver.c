@@ -13,6 +13,7 @@
  * Options (value references from modelDescription.xml):
  *   -r VR=X   set a Real/Float64 parameter before initialisation (repeatable)
  *   -i VR=N   set an Integer/Int32 parameter      -b VR=0|1  set a Boolean parameter
+ *   -e VR=N   set an Enumeration parameter (FMI 2 SetInteger, FMI 3 SetInt64)
  *   -t VR     theta input                          -h H       communication step (s, 0.001)
  *   -o VR,..  Real outputs to print                -O VR,..   Boolean outputs to print
  * Exit status 0 if every call returned OK or Warning, 1 otherwise, 2 on usage errors.
@@ -59,6 +60,7 @@ static fmi3EnterInitializationModeTYPE *f3EnterInit;
 static fmi3ExitInitializationModeTYPE *f3ExitInit;
 static fmi3SetFloat64TYPE *f3SetFloat64;
 static fmi3SetInt32TYPE *f3SetInt32;
+static fmi3SetInt64TYPE *f3SetInt64;
 static fmi3SetBooleanTYPE *f3SetBoolean;
 static fmi3GetFloat64TYPE *f3GetFloat64;
 static fmi3GetBooleanTYPE *f3GetBoolean;
@@ -129,6 +131,7 @@ static void load(const char *path) {
         LOAD(f3ExitInit, "fmi3ExitInitializationMode");
         LOAD(f3SetFloat64, "fmi3SetFloat64");
         LOAD(f3SetInt32, "fmi3SetInt32");
+        LOAD(f3SetInt64, "fmi3SetInt64");
         LOAD(f3SetBoolean, "fmi3SetBoolean");
         LOAD(f3GetFloat64, "fmi3GetFloat64");
         LOAD(f3GetBoolean, "fmi3GetBoolean");
@@ -202,7 +205,7 @@ static void initialise(void *c) {
         setting_t *s = &settings[i];
         if (s->kind == 'r') {
             set_real(c, s->vr, s->x);
-        } else if (s->kind == 'i') {
+        } else if (s->kind == 'i' || (s->kind == 'e' && version == 2)) {
             if (version == 2) {
                 fmi2Integer v = (fmi2Integer)s->x;
                 check(f2SetInteger(c, &s->vr, 1, &v), "SetInteger");
@@ -210,6 +213,9 @@ static void initialise(void *c) {
                 fmi3Int32 v = (fmi3Int32)s->x;
                 check(f3SetInt32(c, &s->vr, 1, &v, 1), "SetInt32");
             }
+        } else if (s->kind == 'e') {
+            fmi3Int64 v = (fmi3Int64)s->x;
+            check(f3SetInt64(c, &s->vr, 1, &v, 1), "SetInt64");
         } else {
             if (version == 2) {
                 fmi2Boolean v = s->x != 0.0;
@@ -319,7 +325,8 @@ int main(int argc, char **argv) {
     for (; i < argc; ++i) {
         const char *a = argv[i];
         if (i + 1 >= argc) return usage();
-        if (!strcmp(a, "-r") || !strcmp(a, "-i") || !strcmp(a, "-b")) {
+        if (!strcmp(a, "-r") || !strcmp(a, "-i") || !strcmp(a, "-e") ||
+            !strcmp(a, "-b")) {
             char *eq;
             if (n_settings >= MAXV) return usage();
             settings[n_settings].kind = a[1];

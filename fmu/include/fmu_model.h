@@ -33,12 +33,16 @@ extern "C" {
 #endif
 
 /* variable types and causalities of the generated table */
-enum { GF_REAL = 0, GF_INTEGER = 1, GF_BOOLEAN = 2 };
+enum { GF_REAL = 0, GF_INTEGER = 1, GF_BOOLEAN = 2, GF_ENUMERATION = 3 };
+/* the type a getter/setter asks for: one of the above, or GF_INTEGER_OR_ENUMERATION (FMI 2
+ * reads and writes Enumeration variables with fmi2Get/SetInteger; FMI 3 with fmi3Get/SetInt64,
+ * which asks for GF_ENUMERATION) */
+enum { GF_INTEGER_OR_ENUMERATION = 4 };
 enum { GF_INDEPENDENT = 0, GF_PARAMETER = 1, GF_INPUT = 2, GF_OUTPUT = 3 };
 
 typedef struct {
     const char *name;
-    int type;       /* GF_REAL, GF_INTEGER, GF_BOOLEAN */
+    int type;       /* GF_REAL, GF_INTEGER, GF_BOOLEAN, GF_ENUMERATION */
     int causality;  /* GF_INDEPENDENT, GF_PARAMETER, GF_INPUT, GF_OUTPUT */
     double start;   /* SI */
     double min;     /* SI, -inf/+inf if unbounded */

@@ -142,7 +142,7 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
 
 fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                           fmi2Integer value[]) {
-    GET_BODY("fmi2GetInteger", GF_INTEGER, (fmi2Integer)x);
+    GET_BODY("fmi2GetInteger", GF_INTEGER_OR_ENUMERATION, (fmi2Integer)x);
 }
 
 fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
@@ -166,7 +166,7 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
 
 fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                           const fmi2Integer value[]) {
-    SET_BODY("fmi2SetInteger", GF_INTEGER, (double)value[i]);
+    SET_BODY("fmi2SetInteger", GF_INTEGER_OR_ENUMERATION, (double)value[i]);
 }
 
 fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,

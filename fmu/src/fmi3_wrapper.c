@@ -1,9 +1,9 @@
 /*
  * fmi3_wrapper.c: FMI 3.0 co-simulation interface of the grasprom controller FMU.
  * Translates the FMI 3 calls into the model layer (fmu_model.h); one fmi3Instance is one
- * gf_instance_t.  Variables are Float64, Int32 and Boolean; model exchange, scheduled
- * execution, event mode, clocks, FMU state and derivatives are not supported (fmi3Error with a
- * logged message).
+ * gf_instance_t.  Variables are Float64, Int32, Enumeration (fmi3Get/SetInt64) and Boolean;
+ * the FMU state can be got, set and serialized; model exchange, scheduled execution, event
+ * mode, clocks and derivatives are not supported (fmi3Error with a logged message).
  */
 #include <stdlib.h>
 #include <string.h>
@@ -174,6 +174,11 @@ fmi3Status fmi3GetInt32(fmi3Instance instance, const fmi3ValueReference valueRef
     GET_BODY("fmi3GetInt32", GF_INTEGER, (fmi3Int32)x);
 }
 
+fmi3Status fmi3GetInt64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                        size_t nValueReferences, fmi3Int64 values[], size_t nValues) {
+    GET_BODY("fmi3GetInt64", GF_ENUMERATION, (fmi3Int64)x); /* the Enumeration variables */
+}
+
 fmi3Status fmi3GetBoolean(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                           size_t nValueReferences, fmi3Boolean values[], size_t nValues) {
     GET_BODY("fmi3GetBoolean", GF_BOOLEAN, x != 0.0);
@@ -187,6 +192,11 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueR
 fmi3Status fmi3SetInt32(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                         size_t nValueReferences, const fmi3Int32 values[], size_t nValues) {
     SET_BODY("fmi3SetInt32", GF_INTEGER, (double)values[i]);
+}
+
+fmi3Status fmi3SetInt64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                        size_t nValueReferences, const fmi3Int64 values[], size_t nValues) {
+    SET_BODY("fmi3SetInt64", GF_ENUMERATION, (double)values[i]); /* range-checked */
 }
 
 fmi3Status fmi3SetBoolean(fmi3Instance instance, const fmi3ValueReference valueReferences[],
@@ -219,7 +229,6 @@ NO_VARS_GET(UInt8, fmi3UInt8)
 NO_VARS_GET(Int16, fmi3Int16)
 NO_VARS_GET(UInt16, fmi3UInt16)
 NO_VARS_GET(UInt32, fmi3UInt32)
-NO_VARS_GET(Int64, fmi3Int64)
 NO_VARS_GET(UInt64, fmi3UInt64)
 NO_VARS_GET(String, fmi3String)
 NO_VARS_SET(Float32, fmi3Float32)
@@ -228,7 +237,6 @@ NO_VARS_SET(UInt8, fmi3UInt8)
 NO_VARS_SET(Int16, fmi3Int16)
 NO_VARS_SET(UInt16, fmi3UInt16)
 NO_VARS_SET(UInt32, fmi3UInt32)
-NO_VARS_SET(Int64, fmi3Int64)
 NO_VARS_SET(UInt64, fmi3UInt64)
 NO_VARS_SET(String, fmi3String)
 

@@ -309,7 +309,19 @@ int gf_access(gf_instance_t *inst, const char *fn, int set) {
 }
 
 static const char *type_name(int type) {
-    return type == GF_REAL ? "Real/Float64" : type == GF_INTEGER ? "Integer/Int32" : "Boolean";
+    switch (type) {
+    case GF_REAL: return "Real/Float64";
+    case GF_INTEGER: return "Integer/Int32";
+    case GF_ENUMERATION: return "Enumeration (FMI 3: Int64)";
+    case GF_INTEGER_OR_ENUMERATION: return "Integer or Enumeration";
+    default: return "Boolean";
+    }
+}
+
+static int type_matches(int var_type, int asked) {
+    if (asked == GF_INTEGER_OR_ENUMERATION)
+        return var_type == GF_INTEGER || var_type == GF_ENUMERATION;
+    return var_type == asked;
 }
 
 static int lookup(gf_instance_t *inst, const char *fn, int type, unsigned int vr) {
@@ -317,7 +329,7 @@ static int lookup(gf_instance_t *inst, const char *fn, int type, unsigned int vr
         gf_log(inst, GF_ERROR, "%s: unknown value reference %u", fn, vr);
         return GF_ERROR;
     }
-    if (GF_VARS[vr].type != type) {
+    if (!type_matches(GF_VARS[vr].type, type)) {
         gf_log(inst, GF_ERROR, "%s: variable %s (value reference %u) is not of type %s", fn,
                GF_VARS[vr].name, vr, type_name(type));
         return GF_ERROR;
@@ -334,7 +346,7 @@ static void apply_tunable(gf_instance_t *inst) {
     GF_COPY_TUNABLE(&inst->p, &p); /* generated from the tunable variables */
 }
 
-static int store_value(gf_instance_t *inst, const char *fn, int type, const gf_var_t *var,
+static int store_value(gf_instance_t *inst, const char *fn, const gf_var_t *var,
                        unsigned int vr, double x);
 
 int gf_set_value(gf_instance_t *inst, const char *fn, int type, unsigned int vr, double x) {
@@ -352,21 +364,25 @@ int gf_set_value(gf_instance_t *inst, const char *fn, int type, unsigned int vr,
         return GF_ERROR;
     }
     if (var->causality == GF_PARAMETER && inst->state == GF_STEP) {
-        int st = store_value(inst, fn, type, var, vr, x); /* the checks of any parameter */
+        int st = store_value(inst, fn, var, vr, x); /* the checks of any parameter */
         if (st <= GF_WARNING) apply_tunable(inst);
         return st;
     }
-    return store_value(inst, fn, type, var, vr, x);
+    return store_value(inst, fn, var, vr, x);
 }
 
 /* store one value after the checks of its type and causality (rejected: not stored) */
-static int store_value(gf_instance_t *inst, const char *fn, int type, const gf_var_t *var,
+/* theta within this of an end stop counts as inside (clamped without a warning): importers
+ * that interpolate an input held at the end stop land an ulp outside it (rad) */
+#define GF_THETA_SLACK 1e-9
+
+static int store_value(gf_instance_t *inst, const char *fn, const gf_var_t *var,
                        unsigned int vr, double x) {
-    if (type == GF_BOOLEAN) {
+    if (var->type == GF_BOOLEAN) {
         inst->v[vr] = x != 0.0;
         return GF_OK;
     }
-    if (type == GF_INTEGER) {
+    if (var->type == GF_INTEGER || var->type == GF_ENUMERATION) {
         if (!(x >= var->min && x <= var->max)) {
             gf_log(inst, GF_ERROR, "%s: %s = %.0f outside [%.0f, %.0f]: rejected", fn,
                    var->name, x, var->min, var->max);
@@ -379,7 +395,7 @@ static int store_value(gf_instance_t *inst, const char *fn, int type, const gf_v
         if (vr == GF_VR_theta) {
             /* stored as is: the controller clamps, and holds the last angle on NaN; warning
              * status every time, logged once per excursion (no flood at 1 kHz) */
-            int bad = !(x >= var->min && x <= var->max);
+            int bad = !(x >= var->min - GF_THETA_SLACK && x <= var->max + GF_THETA_SLACK);
             inst->v[vr] = x;
             if (!bad) {
                 inst->theta_warned = 0;

@@ -39,16 +39,18 @@ from grasprom.export.variables import (
     PRONY_MAX,
     UNITS,
     CField,
+    EnumType,
     Variable,
+    enum_types,
 )
 from grasprom.fe import MATERIAL_NAMES
 from grasprom.surrogate import Surrogate
 
 # ---------------------------------------------------------------------------------- sources
 MODEL_IDENTIFIER = "GraspController"
+"""Model identifier: name of the binary and of the FMI model."""
 FMU_LICENSE = "MIT (see LICENSE of grasprom)"
 """``license`` of the modelDescription: the project's licence, which the FMU's code carries."""
-"""Model identifier: name of the binary and of the FMI model."""
 
 FMI_VERSIONS = (2, 3)
 
@@ -257,7 +259,12 @@ def write_tables_header(surrogate: Surrogate, chain: kin.ChainParams, directory)
 
 
 # ---------------------------------------------------------------------------------- C header
-_GF_TYPES = {"Real": "GF_REAL", "Integer": "GF_INTEGER", "Boolean": "GF_BOOLEAN"}
+_GF_TYPES = {
+    "Real": "GF_REAL",
+    "Integer": "GF_INTEGER",
+    "Enumeration": "GF_ENUMERATION",
+    "Boolean": "GF_BOOLEAN",
+}
 _GF_CAUSALITY = {
     "independent": "GF_INDEPENDENT",
     "parameter": "GF_PARAMETER",
@@ -375,7 +382,10 @@ def config_header(vars_: list[Variable], token: str) -> str:
 
 
 # ---------------------------------------------------------------------------------- XML
-FMI3_TYPE = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
+FMI3_TYPE = {"Real": "Float64", "Integer": "Int32", "Enumeration": "Enumeration",
+             "Boolean": "Boolean"}  # fmt: skip
+"""FMI 3 element of each variable type (an Enumeration is read with fmi3Get/SetInt64; in
+FMI 2 with fmi2Get/SetInteger)."""
 
 LOG_CATEGORIES = (
     ("logEvents", "informational messages (with debug logging on)"),
@@ -388,7 +398,7 @@ def xml_number(x: float | int, type_: str) -> str:
     """A start/min/max value as written in the XML (and the documentation)."""
     if type_ == "Boolean":
         return "true" if x else "false"
-    if type_ == "Integer":
+    if type_ in ("Integer", "Enumeration"):
         return str(int(x))
     return repr(float(x))
 
@@ -408,7 +418,7 @@ def units_xml(indent: str = "  ") -> list[str]:
 
 
 def _type_attrs(v: Variable) -> str:
-    attrs = []
+    attrs = [f'declaredType="{v.enum.name}"'] if v.enum is not None else []
     if v.unit:
         attrs.append(f'unit="{v.unit}"')
     if v.display_unit:
@@ -421,6 +431,30 @@ def _type_attrs(v: Variable) -> str:
         if v.max is not None:
             attrs.append(f'max="{xml_number(v.max, v.type)}"')
     return " ".join(attrs)
+
+
+def enum_types_xml(types: list[EnumType], fmi_version: int, indent: str = "  ") -> list[str]:
+    """``<TypeDefinitions>`` of the enumeration types (empty list without any).
+
+    FMI 2: ``<SimpleType name=...><Enumeration><Item .../>``; FMI 3: ``<EnumerationType
+    name=...><Item .../>``; the item values are their positions.
+    """
+    if not types:
+        return []
+    lines = [f"{indent}<TypeDefinitions>"]
+    for t in types:
+        tag = "SimpleType" if fmi_version == 2 else "EnumerationType"
+        lines.append(f'{indent}  <{tag} name="{t.name}" description={quoteattr(t.description)}>')
+        pad = indent + ("      " if fmi_version == 2 else "    ")
+        if fmi_version == 2:
+            lines.append(f"{indent}    <Enumeration>")
+        lines += [f'{pad}<Item name="{n}" value="{i}" description={quoteattr(d)}/>'
+                  for i, (n, d) in enumerate(t.items)]  # fmt: skip
+        if fmi_version == 2:
+            lines.append(f"{indent}    </Enumeration>")
+        lines.append(f"{indent}  </{tag}>")
+    lines.append(f"{indent}</TypeDefinitions>")
+    return lines
 
 
 def generation_date_and_time() -> str:
@@ -527,6 +561,7 @@ def model_description(
     stop = 4.0
     step = params.sample_time_s
     lines = _md_head(fmi_version, token, description, step) + units_xml()
+    lines += enum_types_xml(enum_types(vars_), fmi_version)
     lines.append("  <LogCategories>")
     lines += [f'    <Category name="{n}" description="{d}"/>' for n, d in LOG_CATEGORIES]
     lines.append("  </LogCategories>")
@@ -566,6 +601,8 @@ def _doc_rows(vars_: list[Variable], fmi_version: int) -> str:
     rows = []
     for v in vars_:
         t = v.type if fmi_version == 2 else FMI3_TYPE[v.type]
+        if v.enum is not None:
+            t = f"{t} ({v.enum.name})"
         fields = (
             v.name,
             v.vr,
@@ -632,10 +669,14 @@ with <em>Error</em> and a logged message; nothing is changed and the instance st
 the tabulated range of the chosen material is clamped at ExitInitializationMode
 (<em>Warning</em>); inconsistent parameters (cut-off above Nyquist, diameter &le; 2 &times;
 thickness) make ExitInitializationMode return <em>Error</em>.</li>
-<li>Inputs outside [min, max], infinite or NaN: accepted with <em>Warning</em>; the controller
+<li>Inputs outside [min, max], infinite or NaN: accepted with <em>Warning</em> (<code>theta</code>
+within 1e-9 rad of an end stop counts as inside: an importer interpolating an input held at the
+stop lands an ulp outside it); the controller
 clamps <code>theta</code> to the end stops (NaN holds the last valid angle); <code>theta_dot</code>
 is clamped (NaN &rarr; 0).</li>
-<li>Parameters are <code>fixed</code>: set them before ExitInitializationMode (or after Reset).</li>
+<li>Parameters are <code>fixed</code> (set them before ExitInitializationMode, or after Reset)
+except the <code>tunable</code> ones (variability column), which may also change between
+steps.</li>
 </ul>
 """
 """The fixed part of the documentation: equations, rendering of the effects, status policy."""
@@ -673,10 +714,48 @@ the dissipation planned in the last d steps is positive and the velocity v of th
 """
 
 
+def _doc_enums(vars_: list[Variable], fmi_version: int) -> str:
+    """The enumeration types with their items and the variables that use them."""
+    access = ("fmi2GetInteger / fmi2SetInteger" if fmi_version == 2
+              else "fmi3GetInt64 / fmi3SetInt64")  # fmt: skip
+    parts = []
+    for t in enum_types(vars_):
+        users = ", ".join(f"<code>{v.name}</code>" for v in vars_ if v.enum == t)
+        items = "".join(f"<li>{i} <code>{html.escape(n)}</code>: {html.escape(d)}</li>"
+                        for i, (n, d) in enumerate(t.items))  # fmt: skip
+        parts.append(f"<p><code>{t.name}</code> ({html.escape(t.description)}; {users}; "
+                     f"read and written with {access}):</p><ul>{items}</ul>")  # fmt: skip
+    return "\n".join(parts)
+
+
+def _doc_platforms(platforms: Sequence[tuple[str, str]]) -> str:
+    """The binaries of the FMU (folder, what it needs) and the sources."""
+    rows = "".join(f"<li><code>binaries/{d}</code>: {html.escape(n)}</li>" for d, n in platforms)
+    return (f"<ul>{rows}<li><code>sources/</code>: the C sources (C99, libm) to build for any "
+            "other platform, e.g. <code>fmpy compile</code>.</li></ul>")  # fmt: skip
+
+
 def documentation_html(
-    vars_: list[Variable], fmi_version: int, token: str, params: ControllerParams
+    vars_: list[Variable],
+    fmi_version: int,
+    token: str,
+    params: ControllerParams,
+    platforms: Sequence[tuple[str, str]] = (),
 ) -> str:
-    """``documentation/index.html``: variables, equations, timing and status policy."""
+    """``documentation/index.html``: variables, enumerations, platforms, equations, timing and
+    status policy.
+
+    Parameters
+    ----------
+    vars_ : list of Variable
+    fmi_version : int
+    token : str
+        GUID / instantiation token.
+    params : ControllerParams
+        Start values (sample time).
+    platforms : sequence of (str, str)
+        Binary folders in the FMU and what each needs to load.
+    """
     mats = ", ".join(f"{i} = {m}" for i, m in enumerate(MATERIAL_NAMES))
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>{MODEL_IDENTIFIER}</title>
@@ -694,7 +773,14 @@ surrogate (materials {mats}) and the kinematic chain are compiled in as tables.<
 multiple of <code>sample_time</code> and runs <code>h/sample_time</code> controller steps at the
 input <code>theta</code> set before the call; the outputs after the call are those of the last
 step (sampled controller: no direct feedthrough, outputs respond to the input of the previous
-communication point). Before the first step the outputs hold their start values.</p>
+communication point). After ExitInitializationMode the outputs are already those of the
+controller at the start angle (no jump at t = 0).</p>
+
+<h2>Enumerations</h2>
+{_doc_enums(vars_, fmi_version)}
+
+<h2>Platforms</h2>
+{_doc_platforms(platforms)}
 
 {_DOC_EQUATIONS}
 {_doc_clipped()}

@@ -32,6 +32,7 @@ Variable units are SI (m, N, N m, rad, s, Pa) with display units (mm, deg, N/mm,
 from __future__ import annotations
 
 import hashlib
+import math
 import shutil
 import subprocess
 import tempfile
@@ -59,11 +60,37 @@ from grasprom.paths import c_file
 from grasprom.surrogate import Surrogate
 
 BINARY_DIR = {2: "linux64", 3: "x86_64-linux"}
+"""Platform folder of the binary under ``binaries/`` per FMI version (Linux x86-64)."""
 WINDOWS_BINARY_DIR = {2: "win64", 3: "x86_64-windows"}
 """FMU platform folders of the Windows DLL (FMI 2, FMI 3)."""
 MINGW_CC = "x86_64-w64-mingw32-gcc"
 """The MinGW-w64 cross compiler of the Windows DLL (Debian: gcc-mingw-w64-x86-64)."""
-"""Platform folder of the binary under ``binaries/`` per FMI version (Linux x86-64)."""
+OLDEST_GLIBC = (2, 14)
+"""Newest glibc symbol version the Linux binary needs (``exp`` is bound to its 2.2.5 version):
+it loads on glibc 2.14 and later (CentOS 7, RHEL 8; tested with objdump)."""
+
+
+def platform_notes(fmi_version: int, windows: bool) -> list[tuple[str, str]]:
+    """The binary folders of an FMU and what each needs to load (for its documentation).
+
+    Parameters
+    ----------
+    fmi_version : int
+    windows : bool
+        Whether the win64 DLL is included.
+
+    Returns
+    -------
+    list of (str, str)
+    """
+    glibc = ".".join(map(str, OLDEST_GLIBC))
+    out = [(BINARY_DIR[fmi_version], f"x86_64 Linux, glibc >= {glibc} (gcc build)")]
+    if windows:
+        note = ("x86_64 Windows (MinGW-w64 build, GCC runtime linked statically: needs only "
+                "KERNEL32.dll and msvcrt.dll)")  # fmt: skip
+        out.append((WINDOWS_BINARY_DIR[fmi_version], note))
+    return out
+
 
 FMI_HEADERS = {
     2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
@@ -226,15 +253,20 @@ def export_fmu(
         mingw = windows_compiler()
         if windows and mingw is None:
             raise RuntimeError(f"the win64 DLL needs {MINGW_CC} (Debian: gcc-mingw-w64-x86-64)")
-        if mingw is not None and windows is not False:
+        with_dll = mingw is not None and windows is not False
+        if with_dll:
             dll = root / "binaries" / WINDOWS_BINARY_DIR[fmi_version] / f"{MODEL_IDENTIFIER}.dll"
             compile_binary(root / "sources", dll, fmi_version, mingw, windows=True)
         (root / "modelDescription.xml").write_text(
             model_description(vars_, fmi_version, token, params, DESCRIPTION)
         )
+        (root / "resources").mkdir()
+        (root / "resources" / DEMO_INPUT_NAME).write_text(demo_input_csv(params, surrogate))
         (root / "documentation").mkdir()
         (root / "documentation" / "index.html").write_text(
-            documentation_html(vars_, fmi_version, token, params)
+            documentation_html(
+                vars_, fmi_version, token, params, platform_notes(fmi_version, with_dll)
+            )  # fmt: skip
         )
         tmp_fmu = Path(tmp) / "out.fmu"
         zip_tree(root, tmp_fmu)
@@ -243,19 +275,108 @@ def export_fmu(
     return out
 
 
-def write_demo_input(path, params: ControllerParams, duration_s: float = 4.0) -> Path:
-    """A handle-angle input for ``fmpy simulate --input-file`` (CSV: ``time`` s, ``theta`` rad).
+DEMO_INPUT_NAME = "grasp_input.csv"
+"""Name of the default input in the FMU's ``resources/`` (and of ``examples/fmu_grasp_input.csv``
+when written for the default parameters)."""
+
+DEMO_PHASES = (("rest open", 1), ("close", 4), ("hold", 6), ("release", 4), ("rest open", 1))
+"""Grasp-hold-release of the default input: phases and their shares of the duration (16ths)."""
+
+DEMO_HOLD_FORCE_N = 10.0
+"""Tissue (jaw) force held by the default input, N: a firm atraumatic grasp (grasping forces of
+laparoscopic graspers are of the order of 5-20 N at the jaw)."""
+
+
+def demo_hold_gap_mm(params: ControllerParams, surrogate: Surrogate | None = None) -> float:
+    """Jaw gap (mm) held by the default input: where the surrogate's tissue force is
+    :data:`DEMO_HOLD_FORCE_N` (material and thickness of ``params``); without a surrogate, the
+    gap at which the inner walls meet (``2 t``). Limited to the chain's gap range."""
+    from scipy.optimize import brentq
+
+    chain = params.chain_params
+    lo, hi = chain.gap_closed_mm, chain.gap_open_mm
+    if surrogate is None:
+        return min(max(2.0 * params.thickness_mm, lo), hi)
+
+    def excess(g: float) -> float:
+        f = surrogate.force_scalar(g, params.thickness_mm, params.material)
+        return f - DEMO_HOLD_FORCE_N
+
+    if excess(lo) <= 0.0:
+        return lo
+    return brentq(excess, lo, hi, xtol=1e-9) if excess(hi) < 0.0 else hi
+
+
+def demo_input(params: ControllerParams, surrogate: Surrogate | None = None,
+               duration_s: float = 4.0, step_s: float | None = None):  # fmt: skip
+    """Grasp-hold-release handle angle: rest open, close, hold, release, rest open.
+
+    The handle closes with a minimum-jerk profile from the open end stop to the angle of
+    :func:`demo_hold_gap_mm` (10 N of tissue force with a surrogate), holds, and reopens;
+    shares of the duration :data:`DEMO_PHASES`.
+
+    Parameters
+    ----------
+    params : ControllerParams
+        Chain (end stops, deg), thickness (mm), material and sample time (s).
+    surrogate : Surrogate, optional
+        Tissue force for the hold gap.
+    duration_s : float
+        Length, s (> 0).
+    step_s : float, optional
+        Time step of the samples, s (default: the sample time; importers such as fmpy
+        interpolate linearly between samples).
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray)
+        Time (s) and handle angle ``theta`` (rad).
+    """
+    import numpy as np
+
+    from grasprom.chain import kinematics as kin
+
+    step = params.sample_time_s if step_s is None else step_s
+    if not (math.isfinite(duration_s) and duration_s > 0):
+        raise ValueError(f"duration_s must be positive and finite, got {duration_s!r}")
+    if not (math.isfinite(step) and 0 < step <= duration_s):
+        raise ValueError(f"step_s must be in (0, duration_s], got {step!r}")
+    chain = params.chain_params
+    theta_hold = math.radians(kin.theta_from_gap_deg(demo_hold_gap_mm(params, surrogate), chain))
+    theta_open = math.radians(kin.theta_range_deg(chain)[1])
+    t = np.round(np.arange(round(duration_s / step) + 1) * step, 12)  # 0.35, not 0.350...03
+    edges = np.cumsum([0] + [w for _, w in DEMO_PHASES]) / 16.0 * duration_s
+    closing = _min_jerk((t - edges[1]) / (edges[2] - edges[1]))
+    opening = _min_jerk((t - edges[3]) / (edges[4] - edges[3]))
+    closed_share = np.where(t < edges[3], closing, 1.0 - opening)
+    theta = theta_open + (theta_hold - theta_open) * closed_share
+    return t, theta
+
+
+def _min_jerk(s):
+    """Minimum-jerk blend 10 s^3 - 15 s^4 + 6 s^5 of s clipped to [0, 1]."""
+    import numpy as np
+
+    s = np.clip(s, 0.0, 1.0)
+    return s**3 * (10.0 - 15.0 * s + 6.0 * s**2)
+
+
+def write_demo_input(path, params: ControllerParams, surrogate: Surrogate | None = None,
+                     duration_s: float = 4.0) -> Path:  # fmt: skip
+    """Write :func:`demo_input` for ``fmpy simulate --input-file`` (CSV: ``time`` s, ``theta``
+    rad, ``theta_dot`` rad/s).
 
     Without an input the FMU holds ``theta`` at its start (the open handle) and every output
-    stays constant; this closes the handle from open to closed over the first half (cosine),
-    and reopens it over the second, at the sample time.
+    stays constant.  ``theta_dot`` is 0: the FMU differentiates ``theta`` itself unless
+    ``use_theta_dot``; the column keeps fmpy from warning about an unset input.
 
     Parameters
     ----------
     path : path
         CSV to write.
     params : ControllerParams
-        Chain (end stops, deg) and sample time (s).
+    surrogate : Surrogate, optional
+        For the hold gap (:func:`demo_hold_gap_mm`).
     duration_s : float
         Length of the input, s.
 
@@ -263,20 +384,19 @@ def write_demo_input(path, params: ControllerParams, duration_s: float = 4.0) ->
     -------
     pathlib.Path
     """
-    import numpy as np
-
-    from grasprom.chain import kinematics as kin
-
-    lo, hi = (np.radians(x) for x in kin.theta_range_deg(params.chain_params))
-    t = np.arange(0.0, duration_s + 0.5 * params.sample_time_s, params.sample_time_s)
-    phase = np.clip(t / (0.5 * duration_s), 0.0, 2.0)
-    theta = lo + (hi - lo) * 0.5 * (1.0 + np.cos(np.pi * phase))
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    lines = ["time,theta,theta_dot"]  # theta_dot unused (use_theta_dot = false), silences fmpy
-    lines += [f"{a!r},{b!r},0.0" for a, b in zip(t.tolist(), theta.tolist())]
-    out.write_text("\n".join(lines) + "\n")
+    out.write_text(demo_input_csv(params, surrogate, duration_s))
     return out
+
+
+def demo_input_csv(params: ControllerParams, surrogate: Surrogate | None = None,
+                   duration_s: float = 4.0, step_s: float | None = None) -> str:  # fmt: skip
+    """Text of the CSV of :func:`write_demo_input` (arguments of :func:`demo_input`)."""
+    t, theta = demo_input(params, surrogate, duration_s, step_s)
+    lines = ["time,theta,theta_dot"]
+    lines += [f"{a!r},{b!r},0.0" for a, b in zip(t.tolist(), theta.tolist())]
+    return "\n".join(lines) + "\n"
 
 
 def check_parameter_ranges(vars_: list[Variable]) -> None:

@@ -80,6 +80,49 @@ RENDERING_CODES: dict[str, int] = {name: i for i, name in enumerate(RENDERINGS)}
 """``gc_params_t.rendering`` of each :data:`grasprom.control.RENDERINGS` scheme: 0 coupling
 (``GC_RENDER_COUPLING``), 1 clipped (``GC_RENDER_CLIPPED``)."""
 
+
+@dataclass(frozen=True)
+class EnumType:
+    """An FMI enumeration type (FMI 2 ``SimpleType``/``Enumeration``, FMI 3 ``EnumerationType``).
+
+    Parameters
+    ----------
+    name : str
+        Type name (``declaredType`` of its variables).
+    description : str
+    items : tuple of (str, str)
+        (item name, description); the item's value is its position (0, 1, ...), the code the
+        C core takes.
+    """
+
+    name: str
+    description: str
+    items: tuple[tuple[str, str], ...]
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Item names in value order."""
+        return tuple(n for n, _ in self.items)
+
+
+_MATERIAL_ITEMS = {
+    "mr": "Mooney-Rivlin, C10 0.085 MPa, C01 0.0565 MPa (seed 003)",
+    "nh": "neo-Hookean, small-strain shear modulus of mr (0.283 MPa)",
+    "le": "linear elastic E 5.18 MPa (seed 003), large-strain compressible neo-Hookean form",
+}
+_RENDERING_ITEMS = {
+    "coupling": "virtual coupling k_c to a proxy on the tissue curve",
+    "clipped": "stiffness-clipped field of stiffness_limit, no virtual coupling",
+}
+MATERIAL_TYPE = EnumType(
+    "Material", "tissue material model", tuple((m, _MATERIAL_ITEMS[m]) for m in MATERIAL_NAMES)
+)
+"""Enumeration of the ``material`` parameter: :data:`grasprom.fe.MATERIAL_NAMES` in order."""
+RENDERING_TYPE = EnumType(
+    "Rendering", "tissue rendering scheme", tuple((r, _RENDERING_ITEMS[r]) for r in RENDERINGS)
+)
+"""Enumeration of the ``rendering`` parameter: values :data:`RENDERING_CODES`."""
+
 FLAG_NAMES = ("contact", "tissue_warning", "coupling_active", "saturated", "theta_clamped")
 """Output flags in bit order (``GF_CONTACT`` = 0x01, ...; the ``int`` fields of ``gc_output_t``)."""
 
@@ -203,7 +246,7 @@ class VarSpec:
     name : str
         FMI variable name (and ``GF_VR_<name>`` in C).
     type : str
-        ``Real``, ``Integer`` or ``Boolean``.
+        ``Real``, ``Integer``, ``Enumeration`` or ``Boolean``.
     causality, variability : str
     description : str
     unit, display_unit : str or None
@@ -218,6 +261,8 @@ class VarSpec:
         Column of :func:`grasprom.control.simulate` an output corresponds to.
     min, max : float or None
         Static limits (SI); limits that depend on the surrogate are set by :func:`variables`.
+    enum : EnumType or None
+        The declared type of an ``Enumeration``.
     """
 
     name: str
@@ -233,6 +278,7 @@ class VarSpec:
     column: str | None = None
     min: float | None = None
     max: float | None = None
+    enum: EnumType | None = None
 
     @property
     def to_core(self) -> float:
@@ -511,7 +557,7 @@ SPECS: tuple[VarSpec, ...] = (
     ),
     VarSpec(
         "material",
-        "Integer",
+        "Enumeration",
         "parameter",
         "fixed",
         "tissue material model: " + _MATERIALS_DESC,
@@ -519,6 +565,7 @@ SPECS: tuple[VarSpec, ...] = (
         core_field="material",
         min=0,
         max=len(MATERIAL_NAMES) - 1,
+        enum=MATERIAL_TYPE,
     ),
     *_PARAMETERS,
     VarSpec(
@@ -589,7 +636,7 @@ SPECS: tuple[VarSpec, ...] = (
     # appended after the outputs: the value references above stay as they were
     VarSpec(
         "rendering",
-        "Integer",
+        "Enumeration",
         "parameter",
         "fixed",
         "tissue rendering scheme: " + _RENDERINGS_DESC + " (1: the stiffness-clipped "
@@ -598,6 +645,7 @@ SPECS: tuple[VarSpec, ...] = (
         core_field="rendering",
         min=0,
         max=len(RENDERINGS) - 1,
+        enum=RENDERING_TYPE,
     ),
     _param(
         "stiffness_limit",
@@ -660,6 +708,15 @@ def spec(name: str) -> VarSpec:
     return next(s for s in SPECS if s.name == name)
 
 
+def enum_types(vars_: list[Variable]) -> list[EnumType]:
+    """The enumeration types the variables declare, once each, in order of first use."""
+    out: list[EnumType] = []
+    for v in vars_:
+        if v.enum is not None and v.enum not in out:
+            out.append(v.enum)
+    return out
+
+
 @dataclass(frozen=True)
 class Variable:
     """One FMU variable (SI values).
@@ -671,7 +728,8 @@ class Variable:
     vr : int
         Value reference (unique over all types, also in FMI 2).
     type : str
-        ``Real``, ``Integer`` or ``Boolean`` (FMI 3: Float64, Int32, Boolean).
+        ``Real``, ``Integer``, ``Enumeration`` or ``Boolean`` (FMI 3: Float64, Int32,
+        Enumeration, Boolean).
     causality : str
         ``independent``, ``input``, ``parameter`` or ``output``.
     variability : str
@@ -697,6 +755,11 @@ class Variable:
     min: float | None = None
     max: float | None = None
     spec: VarSpec | None = None
+
+    @property
+    def enum(self) -> EnumType | None:
+        """The declared type of an ``Enumeration`` (None otherwise)."""
+        return None if self.spec is None else self.spec.enum
 
     @property
     def initial(self) -> str | None:
@@ -746,7 +809,7 @@ def si_start(s: VarSpec, params: ControllerParams) -> float | int | bool:
     raw = core_value(params, s.params_field)
     if s.type == "Boolean":
         return bool(raw)
-    if s.type == "Integer":
+    if s.type in ("Integer", "Enumeration"):
         return int(raw)
     return float(raw) * s.to_si
 

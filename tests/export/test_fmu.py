@@ -34,6 +34,7 @@ from grasprom.control import (
     simulate,
 )
 from grasprom.export import OUTPUT_COLUMNS, build_driver, export_fmu, start_values
+from grasprom.export.fmu import OLDEST_GLIBC
 
 CI = os.environ.get("CI") == "true"
 REL = 1e-9
@@ -165,7 +166,8 @@ def _driver_args(fmu, params) -> list[str]:
     args = ["-t", str(fmu.vars["theta"].valueReference)]
     for name, value in start_values(params).items():
         v = fmu.vars[name]
-        kind = {"Real": "-r", "Float64": "-r", "Integer": "-i", "Int32": "-i"}.get(v.type, "-b")
+        kind = {"Real": "-r", "Float64": "-r", "Integer": "-i", "Int32": "-i",
+                "Enumeration": "-e"}.get(v.type, "-b")  # fmt: skip
         args += [kind, f"{v.valueReference}={float(value)!r}"]
     args += ["-o", ",".join(str(fmu.vars[n].valueReference) for n in REAL_OUT)]
     args += ["-O", ",".join(str(fmu.vars[n].valueReference) for n in BOOL_OUT)]
@@ -208,7 +210,7 @@ def test_fmu_validates_and_has_the_contracted_layout(fmus, version):
     for name, unit, disp in (("thickness", "m", "mm"), ("gap", "m", "mm")):
         assert (v[name].unit, v[name].displayUnit) == (unit, disp)
     assert v["torque"].unit == "N.m" and v["force_handle"].unit == "N"
-    assert v["material"].type in ("Integer", "Int32")
+    assert v["material"].type == "Enumeration" and v["material"].declaredType.name == "Material"
     for name in ("contact", "tissue_warning"):
         assert v[name].type == "Boolean" and v[name].causality == "output"
     expected_params = {"thickness", "material", "spring_k", "damping", "pulley_radius",
@@ -465,7 +467,7 @@ def test_export_with_clipped_rendering(surrogate, tmp_path, version):
     md = read_model_description(str(path))
     v = {x.name: x for x in md.modelVariables}
     assert int(v["rendering"].start) == 1 and float(v["stiffness_limit"].start) == 4.0
-    assert v["stiffness_limit"].unit == "N.m/rad" and v["rendering"].type in ("Integer", "Int32")
+    assert v["stiffness_limit"].unit == "N.m/rad" and v["rendering"].type == "Enumeration"
     assert "0 coupling, 1 clipped" in v["rendering"].description
     html = Path(extract(str(path), str(tmp_path / "x"))) / "documentation" / "index.html"
     assert "Clipped rendering" in html.read_text()
@@ -508,22 +510,29 @@ def test_rendering_parameters_are_checked(slaves, surrogate, version):
 
 
 @pytest.mark.parametrize("version", [2, 3])
-def test_ecospy_matches_python_reference(fmus, surrogate, version):
+def test_ecospy_matches_python_reference(fmus, surrogate, tmp_path, version):
+    """A second importer (libecos). It registers no Enumeration variables, so ``material`` and
+    ``rendering`` come from the start values of an FMU exported with the case's parameters
+    (``export fmu --params``: the documented route for such importers)."""
     try:
         from ecospy import EcosSimulation, EcosSimulationStructure
     except (ImportError, OSError) as exc:  # OSError: libtbb12 missing
         _require(False, f"ecospy ({exc})")
-    fmu = fmus[version]
+    enums = {n for n, v in fmus[version].vars.items() if v.type == "Enumeration"}
+    assert enums == {"material", "rendering"}
     worst = 0.0
-    for case, traj in ((CASES[1], "slow"), (CASES[2], "wiggle")):
+    for i, (case, traj) in enumerate(((CASES[1], "slow"), (CASES[2], "wiggle"))):
         params = _params(case)
+        path = export_fmu(tmp_path / f"e{i}.fmu", params, surrogate, fmi_version=version,
+                          windows=False)  # fmt: skip
         th = np.radians(_trajectories()[traj])
         ref = _reference_steps(params, surrogate, th)
         got = {n: [] for n in REAL_OUT + BOOL_OUT}
         with EcosSimulationStructure() as ss:
-            ss.add_model("ctl", str(fmu.path))
+            ss.add_model("ctl", str(path))
             ss.add_parameter_set("p", {f"ctl::{k}": (float(v) if isinstance(v, float) else v)
-                                       for k, v in start_values(params).items()})  # fmt: skip
+                                       for k, v in start_values(params).items()
+                                       if k not in enums})  # fmt: skip
             with EcosSimulation(structure=ss, step_size=params.sample_time_s) as sim:
                 sim.init(parameter_set="p")
                 for x in th:
@@ -676,9 +685,12 @@ class _Slave:
         if t in ("Real", "Float64"):
             val = (ctypes.c_double * 1)(value)
             fn = "fmi2SetReal" if self.v == 2 else "fmi3SetFloat64"
-        elif t in ("Integer", "Int32"):
+        elif t in ("Integer", "Int32") or (t == "Enumeration" and self.v == 2):
             val = (ctypes.c_int32 * 1)(value)
             fn = "fmi2SetInteger" if self.v == 2 else "fmi3SetInt32"
+        elif t == "Enumeration":  # FMI 3: Int64
+            val = (ctypes.c_int64 * 1)(value)
+            fn = "fmi3SetInt64"
         else:
             val = (
                 (ctypes.c_int * 1)(int(bool(value)))
@@ -701,6 +713,12 @@ class _Slave:
         if t in ("Real", "Float64"):
             val = (ctypes.c_double * 1)()
             fn = "fmi2GetReal" if self.v == 2 else "fmi3GetFloat64"
+        elif t in ("Integer", "Int32") or (t == "Enumeration" and self.v == 2):
+            val = (ctypes.c_int32 * 1)()
+            fn = "fmi2GetInteger" if self.v == 2 else "fmi3GetInt32"
+        elif t == "Enumeration":
+            val = (ctypes.c_int64 * 1)()
+            fn = "fmi3GetInt64"
         else:
             val = (ctypes.c_int * 1)() if self.v == 2 else (ctypes.c_bool * 1)()
             fn = "fmi2GetBoolean" if self.v == 2 else "fmi3GetBoolean"
@@ -873,8 +891,9 @@ def test_step_past_the_stop_time_is_an_error(slaves, version):
 
 @pytest.mark.parametrize("version", [2, 3])
 def test_binary_loads_on_old_glibc(fmus, version):
-    """Issue 17: the Linux binary needs no glibc symbol newer than 2.17 (CentOS 7, RHEL 8),
-    read from its dynamic symbol table with binutils' objdump."""
+    """Issue 17: the Linux binary needs no glibc symbol newer than the documented
+    OLDEST_GLIBC (2.14: CentOS 7, RHEL 8), read from its dynamic symbol table with binutils'
+    objdump."""
     import re
 
     _require(shutil.which("objdump") is not None, "objdump (binutils)")
@@ -883,7 +902,12 @@ def test_binary_loads_on_old_glibc(fmus, version):
     versions = {
         tuple(int(x) for x in v.split(".")) for v in re.findall(r"GLIBC_([\d.]+)", res.stdout)
     }
-    assert versions and max(versions) <= (2, 17), sorted(versions)
+    assert versions and max(versions) <= OLDEST_GLIBC == (2, 14), sorted(versions)
+    # the documentation lists exactly the binaries the FMU holds, with that glibc
+    html = (fmus[version].dir / "documentation" / "index.html").read_text()
+    listed = set(re.findall(r"<code>binaries/([\w-]+)</code>", html))
+    assert listed == {p.name for p in (fmus[version].dir / "binaries").iterdir()}
+    assert "glibc &gt;= 2.14" in html or "glibc >= 2.14" in html
 
 
 @pytest.mark.parametrize("version", [2, 3])
@@ -933,6 +957,78 @@ def test_do_step_work_is_bounded(slaves, version):
         assert s.get("time") == (0, pytest.approx(10.0))
     finally:
         s.free()
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_material_and_rendering_are_enumerations(fmus, slaves, surrogate, version):
+    """Issue 17: ``material`` and ``rendering`` are FMI enumerations whose items are the
+    names of grasprom.fe.MATERIAL_NAMES / control RENDERINGS with the C codes as values, read
+    and written with fmi2Get/SetInteger (FMI 2) or fmi3Get/SetInt64 (FMI 3; Int32 refused).
+    Reference: the Python controller of the material set by its enumeration value."""
+    from grasprom.control.params import RENDERINGS as SCHEMES
+    from grasprom.fe import MATERIAL_NAMES
+
+    fmu = fmus[version]
+    for name, items, type_name in (("material", MATERIAL_NAMES, "Material"),
+                                   ("rendering", SCHEMES, "Rendering")):  # fmt: skip
+        v = fmu.vars[name]
+        assert (v.type, v.declaredType.name) == ("Enumeration", type_name)
+        assert [(i.name, int(i.value)) for i in v.declaredType.items] == [
+            (n, k) for k, n in enumerate(items)
+        ]
+    html = (fmu.dir / "documentation" / "index.html").read_text()
+    assert "Enumeration (Material)" in html and "<code>le</code>" in html
+    s = slaves[version]
+    assert s.instantiate()
+    try:
+        if version == 3:
+            assert s.set_raw("fmi3SetInt32", s.vr("material"), 2, ctypes.c_int32) == 3
+            assert "not of type" in s.last()
+        assert s.set("material", len(MATERIAL_NAMES)) == 3 and "rejected" in s.last()
+        assert s.set("material", MATERIAL_NAMES.index("le")) == 0
+        assert s.enter() == 0  # FMI 2 getters from initialisation mode on
+        assert s.get("material") == (0, MATERIAL_NAMES.index("le"))
+        assert s.exit() == 0
+        ref = ImpedanceController(ControllerParams(material="le"), surrogate)
+        t = 0.0
+        for theta in (0.3, 0.1, 0.05, 0.02):
+            assert s.set("theta", theta) == 0 and s.step(t, 1e-3) == 0
+            t += 1e-3
+            b = ref.step(theta)
+            assert s.get("force_tissue") == (0, pytest.approx(b.force_tissue_N, rel=REL))
+        assert b.force_tissue_N > 1.0  # in contact: the material matters
+        assert s.terminate() == 0
+    finally:
+        s.free()
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_default_input_ships_in_the_fmu_and_in_examples(fmus, surrogate, version):
+    """Issue 17: ``resources/grasp_input.csv`` (and ``examples/fmu_grasp_input.csv`` at 10 ms,
+    for the default data) is a grasp-hold-release from the open stop to a 10 N tissue force and
+    back. Reference for the hold: the Python controller's tissue force at the held angle
+    (encoder quantisation off; forward kinematics, where the input inverted them)."""
+    from grasprom.export.fmu import DEMO_HOLD_FORCE_N, DEMO_INPUT_NAME, demo_input_csv
+    from grasprom.surrogate import load_surrogate
+
+    path = fmus[version].dir / "resources" / DEMO_INPUT_NAME
+    params = ControllerParams()
+    assert path.read_text() == demo_input_csv(params, surrogate)
+    demo = np.genfromtxt(path, delimiter=",", names=True)
+    assert demo["time"][1] == params.sample_time_s and demo["time"][-1] == 4.0
+    theta = demo["theta"]
+    assert theta[0] == theta[-1] == pytest.approx(math.radians(22.0))
+    hold = theta.min()
+    assert np.count_nonzero(theta == hold) > 0.3 * theta.size  # the hold: 6/16 of 4 s
+    exact = dataclasses.replace(params, encoder_counts_per_rev=0)
+    b = ImpedanceController(exact, surrogate).step(hold)
+    assert b.force_tissue_N == pytest.approx(DEMO_HOLD_FORCE_N, rel=1e-6)
+    shipped = Path(__file__).resolve().parents[2] / "examples" / "fmu_grasp_input.csv"
+    expected = demo_input_csv(params, load_surrogate(None, None), step_s=0.01)
+    assert shipped.read_text() == expected, (
+        "examples/fmu_grasp_input.csv is stale: rewrite it with demo_input_csv(ControllerParams(),"
+        " load_surrogate(None, None), step_s=0.01)"
+    )
 
 
 def test_fmi3_refuses_event_mode(slaves):
@@ -996,8 +1092,10 @@ def _expected_set_status(var, x) -> int:
     if var.type in ("Boolean",):
         return 0
     lo, hi = float(var.min), float(var.max)
-    if var.type in ("Integer", "Int32"):
+    if var.type in ("Integer", "Int32", "Enumeration"):
         return 0 if lo <= x <= hi else 3
+    if var.name == "theta":  # 1e-9 rad of slack at the end stops (interpolating importers)
+        return 0 if lo - 1e-9 <= x <= hi + 1e-9 else 1
     if var.causality == "input":
         return 0 if lo <= x <= hi else 1
     if not math.isfinite(x):
@@ -1086,7 +1184,7 @@ def test_cli_export_fmu(tmp_path, capsys):
     # issue 17: a demo input so that `fmpy simulate --input-file` closes the handle; the FMU on
     # it reproduces the Python controller on the same angles
     demo = np.genfromtxt(tmp_path / "G_input.csv", delimiter=",", names=True)
-    assert demo["theta"][0] == pytest.approx(math.radians(22.0)) and demo["theta"].min() < 1e-9
+    assert demo["theta"][0] == pytest.approx(math.radians(22.0)) and demo["theta"].min() < 0.1
     res = simulate_fmu(str(out), input=demo, output=["torque"], stop_time=4.0,
                        output_interval=1e-3)  # fmt: skip
     params = load_params(ctl)
@@ -1094,6 +1192,14 @@ def test_cli_export_fmu(tmp_path, capsys):
     ref = np.array([ctl_ref.step(float(th)).torque_Nm for th in demo["theta"][:-1]])
     np.testing.assert_allclose(res["torque"][1:], ref, rtol=1e-9, atol=1e-12)
     assert ref.max() > 10 * ref[0]  # the closing is felt
+    # the README's command line (fmpy's CLI) on that input: the hold reaches the 10 N grasp
+    fmpy_cli = shutil.which("fmpy")
+    _require(fmpy_cli is not None, "fmpy command")
+    table = tmp_path / "grasp.csv"
+    subprocess.run([fmpy_cli, "simulate", str(out), "--input-file", str(tmp_path / "G_input.csv"),
+                    "--output-file", str(table), "--output-variables", "force_tissue"],
+                   check=True, capture_output=True, timeout=120)  # fmt: skip
+    assert pd.read_csv(table)["force_tissue"].max() == pytest.approx(10.0, rel=0.2)
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps({"pulley_radius_mm": 1e6}))
     assert main(["export", "fmu", "--out", str(tmp_path / "b.fmu"), "--params", str(bad)]) == 2

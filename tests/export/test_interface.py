@@ -174,7 +174,7 @@ def test_rendering_parameters_are_appended_and_mapped(surrogate):
         assert names[: len(VARIABLES_BEFORE_RENDERING)] == VARIABLES_BEFORE_RENDERING
         assert names[len(VARIABLES_BEFORE_RENDERING) :][:2] == ["rendering", "stiffness_limit"]
         r, k = vars_["rendering"], vars_["stiffness_limit"]
-        assert (r.type, r.causality, r.variability) == ("Integer", "parameter", "fixed")
+        assert (r.type, r.causality, r.variability) == ("Enumeration", "parameter", "fixed")
         assert (r.min, r.max, r.start) == (0, 1, RENDERING_CODES[p.rendering])
         assert "0 coupling, 1 clipped" in r.description
         assert (k.type, k.causality, k.unit, k.display_unit) == ("Real", "parameter", "N.m/rad",
@@ -185,7 +185,8 @@ def test_rendering_parameters_are_appended_and_mapped(surrogate):
             tag = "ScalarVariable" if version == 2 else "*"
             xml = {e.get("name"): e for e in root.iter(tag) if e.get("valueReference")}
             assert int(xml["rendering"].get("valueReference")) == len(VARIABLES_BEFORE_RENDERING)
-            el = xml["rendering"].find("Integer") if version == 2 else xml["rendering"]
+            el = xml["rendering"].find("Enumeration") if version == 2 else xml["rendering"]
+            assert el.get("declaredType") == "Rendering"
             assert int(el.get("start")) == RENDERING_CODES[p.rendering]
             el = xml["stiffness_limit"].find("Real") if version == 2 else xml["stiffness_limit"]
             assert el.get("unit") == "N.m/rad" and float(el.get("start")) == k.start
