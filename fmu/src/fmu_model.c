@@ -209,6 +209,12 @@ int gf_exit_initialization(gf_instance_t *inst, const char *fn) {
                                "wall thickness %g mm", fn, p.diameter, p.thickness);
         return GF_ERROR;
     }
+    if (p.encoder_counts != 0.0 && p.encoder_counts < GF_ENCODER_COUNTS_MIN) {
+        gf_log(inst, GF_ERROR, "%s: parameters rejected: encoder_counts %g must be 0 (no "
+                               "quantisation) or at least %d", fn, p.encoder_counts,
+               GF_ENCODER_COUNTS_MIN);
+        return GF_ERROR;
+    }
     inst->p = p;
     gc_init(&inst->s, &inst->p, &GC_CHAIN);
     gc_build_field(&inst->s, &inst->p, &GC_CHAIN, &GC_MATERIALS[inst->p.material]);

@@ -34,6 +34,7 @@ from grasprom.chain import kinematics as kin
 from grasprom.control import ControllerParams
 from grasprom.control.field import FIELD_POINTS
 from grasprom.export.variables import (
+    ENCODER_COUNTS_MIN,
     OUTPUT_FIELDS,
     PARAMS_FIELDS,
     PRONY_MAX,
@@ -347,6 +348,7 @@ def config_header(vars_: list[Variable], token: str) -> str:
         f"#define GF_N_VARS {len(vars_)}",
         f"#define GF_PRONY_MAX {PRONY_MAX} /* Prony terms of the variables (GC_PRONY_MAX) */",
         f"#define GF_FIELD_POINTS {FIELD_POINTS} /* clipped field nodes (GC_FIELD_POINTS) */",
+        f"#define GF_ENCODER_COUNTS_MIN {ENCODER_COUNTS_MIN} /* encoder_counts: 0 or >= this */",
     ]
     lines += [f"#define GF_VR_{v.name} {v.vr}" for v in vars_]
     lines.append("")

@@ -26,7 +26,7 @@ from dataclasses import dataclass, replace
 
 from grasprom.chain import kinematics as kin
 from grasprom.control import MAX_PRONY_TERMS, PARAMETER_RANGES, ControllerParams
-from grasprom.control.params import OBSERVER_DELAY_MAX, RENDERINGS
+from grasprom.control.params import ENCODER_COUNTS_RANGE, OBSERVER_DELAY_MAX, RENDERINGS
 from grasprom.fe import MATERIAL_NAMES
 from grasprom.surrogate import Surrogate
 
@@ -234,7 +234,9 @@ def prony_padded(params: ControllerParams) -> tuple[list[float], list[float]]:
 # ---------------------------------------------------------------------------------- FMU
 THETA_DOT_MAX = 1e3
 """Bound of the ``theta_dot`` input (rad/s); larger values are clamped."""
-ENCODER_COUNTS_MAX = 2**30
+ENCODER_COUNTS_MIN, ENCODER_COUNTS_MAX = ENCODER_COUNTS_RANGE
+"""``encoder_counts``: 0 (no quantisation) or in [min, max] (the range ControllerParams
+enforces; the FMU refuses 1..min-1 at ExitInitializationMode)."""
 
 
 @dataclass(frozen=True)
@@ -573,7 +575,8 @@ SPECS: tuple[VarSpec, ...] = (
         "Integer",
         "parameter",
         "fixed",
-        "motor encoder resolution in counts per revolution (0: no quantisation of theta)",
+        "motor encoder resolution in counts per revolution (0: no quantisation of theta; "
+        f"otherwise at least {ENCODER_COUNTS_RANGE[0]})",
         params_field="encoder_counts_per_rev",
         core_field="encoder_counts",
         min=0,

@@ -1003,6 +1003,30 @@ def test_material_and_rendering_are_enumerations(fmus, slaves, surrogate, versio
 
 
 @pytest.mark.parametrize("version", [2, 3])
+@pytest.mark.parametrize("counts", [1, 15, 16])
+def test_encoder_counts_below_the_minimum_are_refused(slaves, version, counts):
+    """The FMU applies ControllerParams' rule (0 or >= 16 counts/rev) at
+    ExitInitializationMode: 1..15 are refused there as in Python, 16 runs."""
+    from grasprom.control.params import ENCODER_COUNTS_RANGE
+
+    python_ok = True
+    try:
+        ControllerParams(encoder_counts_per_rev=counts)
+    except ValueError:
+        python_ok = False
+    assert python_ok == (counts >= ENCODER_COUNTS_RANGE[0])
+    s = slaves[version]
+    assert s.instantiate()
+    try:
+        assert s.set("encoder_counts", counts) == 0 and s.enter() == 0
+        assert s.exit() == (0 if python_ok else 3)
+        if not python_ok:
+            assert "encoder_counts" in s.last() and "at least 16" in s.last()
+    finally:
+        s.free()
+
+
+@pytest.mark.parametrize("version", [2, 3])
 def test_default_input_ships_in_the_fmu_and_in_examples(fmus, surrogate, version):
     """Issue 17: ``resources/grasp_input.csv`` (and ``examples/fmu_grasp_input.csv`` at 10 ms,
     for the default data) is a grasp-hold-release from the open stop to a 10 N tissue force and
@@ -1114,17 +1138,19 @@ def test_fuzz_inputs_and_parameters_never_crash(fmus, slaves, version):
         s.log.clear()
         assert s.instantiate()
         try:
-            eff = {n: float(fmu.vars[n].start) for n in FUZZ_PARAMS}
+            eff = {n: float(fmu.vars[n].start) for n in (*FUZZ_PARAMS, "encoder_counts")}
             for name, x in p.items():
                 var = fmu.vars[name]
                 st_ = s.set(name, x)
                 assert st_ == _expected_set_status(var, x), (name, x, s.last())
                 if name in eff and st_ < 3:
                     eff[name] = min(max(x, float(var.min)), float(var.max))
+                    eff[name] = int(x) if var.type == "Integer" else eff[name]
             assert s.enter() == 0
             # the checks of ExitInitializationMode, in the same floating-point operations
             ok = (eff["velocity_cutoff"] < 0.5 / eff["sample_time"]
-                  and eff["diameter"] * 1e3 > 2.0 * (eff["thickness"] * 1e3))  # fmt: skip
+                  and eff["diameter"] * 1e3 > 2.0 * (eff["thickness"] * 1e3)
+                  and (eff["encoder_counts"] == 0 or eff["encoder_counts"] >= 16))  # fmt: skip
             st_exit = s.exit()
             assert st_exit == (0 if ok else 3), (eff, s.last())
             event("initialised" if ok else "rejected at ExitInitializationMode")
