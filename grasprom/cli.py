@@ -221,9 +221,9 @@ def _add_surrogate_parser(sub) -> None:
     b.add_argument("--out", required=True, metavar="FILE", help="surrogate JSON to write")
     b.add_argument(
         "--tol",
-        type=float,
+        type=_tolerance,
         default=0.005,
-        help="gap-node tolerance relative to max(20 N, F) (default 0.005)",
+        help=f"gap-node tolerance relative to max(20 N, F), in (0, {TOL_MAX:g}] (default 0.005)",
     )
     b.add_argument(
         "--scheme",
@@ -324,13 +324,15 @@ def _augment_params(cmd: str, path: str, params, sur) -> tuple[object, dict]:
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
     import dataclasses
-    import os
-    import tempfile
+    import math
 
     import pandas as pd
 
     from grasprom.control import ControllerParams, load_params, simulate
+    from grasprom.fe.atomicio import atomic_write_bytes
 
+    if args.thickness is not None and not (math.isfinite(args.thickness) and args.thickness > 0):
+        return _error("simulate", f"--thickness must be > 0 mm, got {args.thickness}")
     try:
         params = load_params(args.controller) if args.controller else ControllerParams()
         over = {}
@@ -343,7 +345,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         params = dataclasses.replace(params, **over)
         try:
             traj = pd.read_csv(args.trajectory)
-        except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        except (OSError, UnicodeDecodeError, pd.errors.ParserError,
+                pd.errors.EmptyDataError) as exc:  # fmt: skip
             raise ValueError(f"{args.trajectory}: cannot read trajectory ({exc})") from None
         from grasprom.surrogate import load_surrogate
 
@@ -358,24 +361,39 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             out["force_handle_measured_N"] = measured_handle_force_N(
                 out["time_s"].to_numpy(), out["force_handle_N"].to_numpy(), aug["measurement"]
             )
-        dest = Path(args.out)
-        fd, tmp = tempfile.mkstemp(dir=dest.parent if str(dest.parent) else ".", suffix=".tmp")
-        os.close(fd)
         try:
-            out.to_csv(tmp, index=False)
-            os.replace(tmp, dest)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+            atomic_write_bytes(args.out, out.to_csv(index=False).encode())
+        except OSError as exc:
+            raise OSError(f"--out {args.out}: cannot write ({exc.strerror or exc})") from None
     except (OSError, ValueError) as exc:
         return _error("simulate", exc)
     n_warn = int(out["tissue_warning"].sum())
     print(
         f"grasprom simulate: {len(out)} steps at {1 / params.sample_time_s:g} Hz, "
         f"max jaw force {out['force_jaw_N'].max():.3g} N, max handle force "
-        f"{out['force_handle_N'].max():.3g} N, tissue warning in {n_warn} steps -> {dest}"
+        f"{out['force_handle_N'].max():.3g} N, tissue warning in {n_warn} steps -> {args.out}"
     )
     return 0
+
+
+TOL_MAX = 0.1
+"""Largest ``--tol`` (a fraction: 10 % of the force scale; beyond that the tables are not a
+model of the FE data any more)."""
+
+
+def _tolerance(text: str) -> float:
+    """``--tol``: a fraction in (0, :data:`TOL_MAX`] (argparse type)."""
+    import math
+
+    try:
+        x = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (math.isfinite(x) and 0.0 < x <= TOL_MAX):
+        raise argparse.ArgumentTypeError(
+            f"must be a fraction in (0, {TOL_MAX:g}] (0.005 = 0.5 %), got {text}"
+        )
+    return x
 
 
 def _error(cmd: str, msg: object) -> int:
@@ -385,6 +403,7 @@ def _error(cmd: str, msg: object) -> int:
 
 def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
     from grasprom.fe import CorruptCaseError, SweepInputError, build_grid, default_runner, run_sweep
+    from grasprom.fe.grid import check_out_dir
     from grasprom.fe.grid3d import Model3DOptions, check_options, to_3d
 
     opts3d = Model3DOptions(args.contact, args.friction, args.tube_length, args.ends)
@@ -399,11 +418,13 @@ def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
             force_cap_N=args.force_cap,
             n_layers=args.n_layers,
             n_circ=args.n_circ,
-            out_dir=args.out,
         )
         if args.model == "3d":
             mesh = {k: v for k, v in (("n_layers", args.n_layers), ("n_circ", args.n_circ)) if v}
             specs = to_3d(specs, opts3d, mesh)
+        if args.workers is not None and args.workers < 1:
+            raise SweepInputError(f"--workers: must be a positive integer, got {args.workers}")
+        check_out_dir(args.out)  # created only once every option is valid
         if not args.quiet:
             print(
                 f"grasprom sweep: {len(specs)} cases ({args.model}) -> {args.out}",
@@ -574,12 +595,23 @@ def _cmd_tune(args: argparse.Namespace) -> int:
     import math
     import warnings
 
-    from grasprom.control import ControllerParams, apply_device, load_params, tune, write_outputs
+    from grasprom.control import (
+        PARAMETER_RANGES,
+        ControllerParams,
+        apply_device,
+        load_params,
+        tune,
+        write_outputs,
+    )
     from grasprom.surrogate import SurrogateFileError
 
+    t_lo, t_hi = PARAMETER_RANGES["sample_time_s"]
+    if not (math.isfinite(args.rate_hz) and 1.0 / t_hi <= args.rate_hz <= 1.0 / t_lo):
+        return _error("tune", f"--rate-hz must be in [{1 / t_hi:g}, {1 / t_lo:g}] Hz (the "
+                      f"controller's sample-time range), got {args.rate_hz}")  # fmt: skip
+    if not (math.isfinite(args.safety) and args.safety >= 1.0):
+        return _error("tune", f"--safety must be a factor >= 1, got {args.safety}")
     try:
-        if not (math.isfinite(args.rate_hz) and args.rate_hz > 0):
-            raise ValueError(f"--rate-hz must be > 0, got {args.rate_hz}")
         thick = None
         if args.thickness:
             try:
@@ -642,10 +674,10 @@ def _add_export_parser(sub) -> None:
     a.add_argument("--params", default=None, metavar="JSON", help="controller parameters")
     a.add_argument(
         "--tol",
-        type=float,
+        type=_tolerance,
         default=0.005,
-        help="table tolerance, fraction of the largest rendered jaw force (default 0.005: "
-        "handle-force error within 0.5 %% of the rendered range)",
+        help=f"table tolerance, fraction of the largest rendered jaw force, in (0, {TOL_MAX:g}] "
+        "(default 0.005: handle-force error within 0.5 %% of the rendered range)",
     )
     a.add_argument(
         "--driver",
@@ -824,6 +856,25 @@ def _add_build_parser(sub) -> None:
     )
 
 
+def _build_inputs_error(args: argparse.Namespace, fe_dir: Path) -> str | None:
+    """What is wrong with the inputs of ``build`` before any stage runs (None: nothing); then
+    creates ``--out`` (so that a bad input leaves no output folder behind)."""
+    if not fe_dir.is_dir():
+        return f"--fe {args.fe}: FE sweep directory {fe_dir} does not exist"
+    if args.augmented:
+        from grasprom.gap import load_augmented
+
+        try:
+            load_augmented(args.augmented)
+        except (OSError, ValueError) as exc:
+            return f"--augmented {args.augmented}: {exc}"
+    try:
+        Path(args.out).mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        return f"--out {args.out}: cannot create the output folder ({exc.strerror or exc})"
+    return None
+
+
 def _cmd_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
     import math
 
@@ -840,8 +891,12 @@ def _cmd_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
             _load_device_option(args.device)
         except ValueError as exc:
             return _error("build", exc)
+    fe_dir = resolve_data_dir(args.fe)
+    err = _build_inputs_error(args, fe_dir)
+    if err is not None:
+        return _error("build", err)
     opts = BuildOptions(
-        fe_dir=resolve_data_dir(args.fe),
+        fe_dir=fe_dir,
         holdout_dir=args.holdout,
         thickness_mm=args.thickness,
         material=args.material,
@@ -906,9 +961,15 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     except (OSError, ValueError) as exc:
         print(f"grasprom diagnose: {exc}", file=sys.stderr)
         return 2
-    write_outputs(diag, args.out, plots=not args.no_plots)
+    try:
+        paths = write_outputs(diag, args.out, plots=not args.no_plots)
+    except OSError as exc:
+        print(f"grasprom diagnose: --out {args.out}: cannot write the outputs ({exc})",
+              file=sys.stderr)  # fmt: skip
+        return 2
     print(format_summary(diag.report))
-    print(f"\nwrote {Path(args.out) / 'report.json'} and {Path(args.out) / 'augmented_model.json'}")
+    wrote = [str(paths["report"])] + ([str(paths["augmented"])] if "augmented" in paths else [])
+    print(f"\nwrote {' and '.join(wrote)}")
     return 0
 
 
@@ -991,7 +1052,12 @@ def _cmd_synth(args: argparse.Namespace) -> int:
     except (OSError, ValueError) as exc:
         print(f"grasprom synth: {exc}", file=sys.stderr)
         return 2
-    paths = write_case(case, args.out)
+    try:
+        paths = write_case(case, args.out)
+    except OSError as exc:
+        print(f"grasprom synth: --out {args.out}: cannot write the trials ({exc})",
+              file=sys.stderr)  # fmt: skip
+        return 2
     print(
         f"wrote {len(paths)} trial(s) to {args.out} (effects withheld in truth.json: "
         f"{', '.join(names) or 'none'})"

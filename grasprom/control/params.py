@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
@@ -465,7 +464,7 @@ def load_params(path: str | os.PathLike[str]) -> ControllerParams:
     p = Path(path)
     try:
         d = json.loads(p.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
+    except (OSError, json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ValueError(f"{p}: cannot read controller parameters ({exc})") from None
     if not isinstance(d, dict):
         raise ValueError(f"{p}: expected a JSON object")
@@ -475,12 +474,14 @@ def load_params(path: str | os.PathLike[str]) -> ControllerParams:
 def save_params(
     params: ControllerParams, path: str | os.PathLike[str], extra: dict[str, Any] | None = None
 ) -> None:
-    """Write controller parameters (and optional ``extra`` keys, e.g. ``tuning``) as JSON."""
-    p = Path(path)
+    """Write controller parameters (and optional ``extra`` keys, e.g. ``tuning``) as JSON.
+
+    Atomic, mode 0644 (:func:`grasprom.fe.atomicio.atomic_write_json`); a failed write raises
+    an ``OSError`` naming ``path`` and leaves nothing behind.
+    """
+    from grasprom.fe.atomicio import atomic_write_json
+
     d = params_to_dict(params)
     if extra:
         d.update(extra)
-    fd, tmp = tempfile.mkstemp(dir=p.parent if str(p.parent) else ".", suffix=".tmp")
-    with os.fdopen(fd, "w") as fh:
-        json.dump(d, fh, indent=2)
-    os.replace(tmp, p)
+    atomic_write_json(path, d)

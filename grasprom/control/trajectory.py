@@ -25,6 +25,7 @@ if TYPE_CHECKING:  # pandas is imported when used: ``import grasprom.control`` s
 __all__ = [
     "SIMULATION_COLUMNS",
     "MAX_SIMULATION_STEPS",
+    "check_time_seconds",
     "TRAJECTORY_COLUMNS",
     "grasp_trajectory",
     "max_simulation_steps",
@@ -63,6 +64,35 @@ SIMULATION_COLUMNS = (
 tissue stiffness ``-dF/dgap`` at the kinematic gap (N/mm, scaled like the force) and the
 rendering's bound on the jaw stiffness at the chain angle
 (:func:`~grasprom.control.field.jaw_stiffness_limit_N_per_mm`, N/mm)."""
+
+
+MS_SUSPECT_STEP_S = 0.5
+"""Median time step (s) from which a long record's ``time_s`` is taken for milliseconds."""
+MS_SUSPECT_SPAN_S = 100.0
+"""Span (s) from which a record with :data:`MS_SUSPECT_STEP_S` steps is taken for ms."""
+
+
+def check_time_seconds(t: np.ndarray, source: str, column: str = "time_s") -> None:
+    """Refuse a time column that looks like milliseconds.
+
+    A sampled record whose median step is at least :data:`MS_SUSPECT_STEP_S` (2 Hz or slower)
+    and which spans at least :data:`MS_SUSPECT_SPAN_S` is a grasp written in ms (a 1 kHz
+    record in ms has a step of 1 and spans thousands); a few waypoints (< 20 rows) pass.
+
+    Raises
+    ------
+    ValueError
+        Naming ``source`` and ``column``.
+    """
+    if t.size < 20:
+        return
+    step = float(np.median(np.diff(t)))
+    span = float(t[-1] - t[0])
+    if step >= MS_SUSPECT_STEP_S and span >= MS_SUSPECT_SPAN_S:
+        raise ValueError(
+            f"{source}: column {column!r} spans {span:.6g} s with a median step of {step:.3g} s "
+            "-- is it in milliseconds? (the column must be in seconds: divide by 1000)"
+        )
 
 
 def validate_trajectory(
@@ -111,6 +141,7 @@ def validate_trajectory(
             f"{source}: column 'theta_deg' stays within 0.4 deg -- is it in radians? "
             "(the column must be in degrees: multiply by 180/pi)"
         )
+    check_time_seconds(t, source)
     _check_steps(t, params, source)
     return t, th
 

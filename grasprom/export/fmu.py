@@ -270,8 +270,11 @@ def export_fmu(
         )
         tmp_fmu = Path(tmp) / "out.fmu"
         zip_tree(root, tmp_fmu)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        shutil.move(str(tmp_fmu), out)
+        try:
+            out.parent.mkdir(parents=True, exist_ok=True)
+            shutil.move(str(tmp_fmu), out)
+        except OSError as exc:
+            raise OSError(f"cannot write the FMU {out}: {exc.strerror or exc}") from None
     return out
 
 

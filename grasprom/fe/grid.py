@@ -358,6 +358,9 @@ def _case_limit(max_cases: int | None) -> int:
     return max_cases
 
 
+MIN_CIRC_2D = 4
+"""Fewest divisions along the quarter circumference a 2D case accepts (``--n-circ``)."""
+
 _OPTION_NAMES = {
     "diameter_mm": "--diameter",
     "jaw_length_mm": "--jaw-length",
@@ -376,6 +379,11 @@ def _check_options(
     for name, v in (("--n-layers", n_layers), ("--n-circ", n_circ)):
         if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v < 1):
             raise SweepInputError(f"{name}: must be a positive integer, got {v!r}")
+    if n_circ is not None and n_circ < MIN_CIRC_2D:
+        raise SweepInputError(
+            f"--n-circ: the model needs at least {MIN_CIRC_2D} divisions along the quarter "
+            f"circumference (coarser meshes cannot follow the jaw contact), got {n_circ}"
+        )
 
 
 def _check_geometry(t_list: list[float], kw: dict[str, float]) -> None:

@@ -148,9 +148,9 @@ def make_report(
     -------
     ReportFiles
     """
+    table = sweep_table(directory, gaps_mm)  # reads (and checks) the sweep before any output
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    table = sweep_table(directory, gaps_mm)
     csv_path = out / "sweep_table.csv"
     atomic_write_bytes(csv_path, table.to_csv(index=False, lineterminator="\n").encode())
     png = plot_sweep(directory, out / "force_gap.png", logy=logy)

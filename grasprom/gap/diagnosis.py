@@ -57,9 +57,10 @@ from grasprom.gap.effects import BLOCKS, EFFECT_ORDER, EFFECTS
 from grasprom.gap.fit import Fit, fit_effects, fit_params, predict
 from grasprom.gap.formats import FORMAT_REPORT, FORMAT_VERSION, jsonable
 from grasprom.gap.prepare import ANALYSIS_RATE_HZ, PHASES, PreparedTrial, prepare_trial
+from grasprom.gap.screening import bound_reasons, screen_trials
 from grasprom.gap.selection import CandidateSearch, effect_row, search_candidates
 from grasprom.gap.trials import FloatArray, Trial
-from grasprom.gap.verdict import Verdict, judge, verdict_section
+from grasprom.gap.verdict import Verdict, judge, not_diagnosable, verdict_section
 from grasprom.surrogate import Surrogate
 
 
@@ -69,10 +70,11 @@ class DiagnosisError(ValueError):
 
 @dataclass
 class Diagnosis:
-    """Result of :func:`diagnose`: the JSON-ready report and the data behind the plots."""
+    """Result of :func:`diagnose`: the JSON-ready report, the augmented model (None when the
+    verdict is ``not_diagnosable``: nothing to render) and the data behind the plots."""
 
     report: dict[str, Any]
-    augmented: dict[str, Any]
+    augmented: dict[str, Any] | None
     preps: list[PreparedTrial] = field(repr=False, default_factory=list)
     baseline_pred: list[FloatArray] = field(repr=False, default_factory=list)
     augmented_pred: list[FloatArray] = field(repr=False, default_factory=list)
@@ -254,14 +256,23 @@ def diagnose(
     search = search_candidates(preps, cands, gap, surrogate, chain, try_pairs)
     verdict = judge(gap, search, len(preps))
     chosen_fit = fit_effects(preps, search.chosen, surrogate, chain)
+    reasons = screen_trials(preps)
+    if not reasons and verdict.label == "explained":
+        reasons = bound_reasons(chosen_fit)
+    if reasons:
+        verdict = not_diagnosable(verdict, reasons)
     report = _report(preps, gap, search, verdict, chosen_fit, warn_list, rate_hz)
-    augmented = augmented_dict(
-        chain,
-        surrogate,
-        _augmented_effects(verdict, search, chosen_fit),
-        verdict.label,
-        verdict.rms_before_N,
-        verdict.rms_after_N,
+    augmented = (
+        None
+        if verdict.label == "not_diagnosable"
+        else augmented_dict(
+            chain,
+            surrogate,
+            _augmented_effects(verdict, search, chosen_fit),
+            verdict.label,
+            verdict.rms_before_N,
+            verdict.rms_after_N,
+        )
     )
     aug_pred = (
         [predict(p, chosen_fit, surrogate, chain) for p in preps]
@@ -269,5 +280,9 @@ def diagnose(
         else [p.F0 for p in preps]
     )
     return Diagnosis(
-        jsonable(report), jsonable(augmented), list(preps), [p.F0 for p in preps], aug_pred
+        jsonable(report),
+        None if augmented is None else jsonable(augmented),
+        list(preps),
+        [p.F0 for p in preps],
+        aug_pred,
     )

@@ -70,20 +70,30 @@ def format_summary(report: dict[str, Any]) -> str:
     ]
     if v["label"] == "explained":
         lines += _explained_param_lines(report)
+    if v["label"] == "not_diagnosable":
+        lines.append("  no augmented model is written")
     for wmsg in report["warnings"]:
         lines.append(f"warning: {wmsg}")
     return "\n".join(lines)
 
 
 def write_outputs(diag: Diagnosis, out_dir: str | Path, plots: bool = True) -> dict[str, Path]:
-    """Write ``report.json``, ``augmented_model.json`` and (optionally) the plots."""
+    """Write ``report.json``, ``augmented_model.json`` and (optionally) the plots.
+
+    With the verdict ``not_diagnosable`` there is no augmented model: none is written and one
+    left in ``out_dir`` by an earlier run is removed (it would not belong to this report).
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     rep = dict(diag.report)
-    rep["augmented_model"] = "augmented_model.json"
+    aug_path = out / "augmented_model.json"
+    rep["augmented_model"] = None if diag.augmented is None else aug_path.name
     (out / "report.json").write_text(json.dumps(rep, indent=2))
     paths = {"report": out / "report.json"}
-    paths["augmented"] = save_augmented(diag.augmented, out / "augmented_model.json")
+    if diag.augmented is None:
+        aug_path.unlink(missing_ok=True)
+    else:
+        paths["augmented"] = save_augmented(diag.augmented, aug_path)
     if plots:
         for p in write_plots(diag, out):
             paths[p.stem] = p

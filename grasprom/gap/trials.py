@@ -73,7 +73,9 @@ def _numeric_columns(df: pd.DataFrame, source: str) -> dict[str, FloatArray]:
 
 
 def _check_time(t: FloatArray, source: str) -> None:
-    """Time (s) must increase strictly."""
+    """Time (s) must increase strictly and be in seconds (not ms)."""
+    from grasprom.control.trajectory import check_time_seconds
+
     if t.size >= 2:
         bad = np.flatnonzero(np.diff(t) <= 0)
         if bad.size:
@@ -82,6 +84,10 @@ def _check_time(t: FloatArray, source: str) -> None:
                 f"{source}: row {i + 1} (line {i + 2}), column 'time_s': time must increase "
                 f"strictly ({float(t[i])!r} s after {float(t[i - 1])!r} s)"
             )
+    try:
+        check_time_seconds(t, source)
+    except ValueError as exc:
+        raise TrialDataError(str(exc)) from None
 
 
 def _check_theta(th: FloatArray, source: str, chain: kin.ChainParams) -> None:

@@ -1,11 +1,13 @@
 """The verdict of the diagnosis: ``none`` (the gap is within the noise), ``explained`` (an effect
 set explains at least :data:`~grasprom.gap.criteria.EXPLAINED_SHARE` of the systematic gap on
-held-out trials) or ``unexplained`` (an effect outside the library?), with its confidence and
-the held-out shrink of the gap."""
+held-out trials), ``unexplained`` (an effect outside the library?) or ``not_diagnosable`` (the
+data cannot support a diagnosis: :mod:`~grasprom.gap.screening`), with its confidence and the
+held-out shrink of the gap."""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -17,7 +19,7 @@ from grasprom.gap.prepare import PHASES
 from grasprom.gap.selection import CandidateSearch
 from grasprom.gap.stats import rms, stats_by_label
 
-VERDICTS = ("explained", "none", "unexplained")
+VERDICTS = ("explained", "none", "unexplained", "not_diagnosable")
 
 
 @dataclass
@@ -33,6 +35,7 @@ class Verdict:
     rms_after_N: float
     shrink: float
     shrink_rms: float
+    reasons: tuple[str, ...] = ()
 
 
 def _separation(search: CandidateSearch, e_share: float) -> float:
@@ -115,6 +118,23 @@ def judge(gap: BaselineGap, search: CandidateSearch, n_trials: int) -> Verdict:
     )
 
 
+def not_diagnosable(v: Verdict, reasons: Sequence[str]) -> Verdict:
+    """The verdict ``not_diagnosable`` in place of ``v``: no effects, no shrink, confidence 1
+    in the refusal, the reasons as the message."""
+    return Verdict(
+        "not_diagnosable",
+        [],
+        1.0,
+        "not diagnosable: " + "; ".join(reasons),
+        0.0,
+        v.rms_before_N,
+        v.rms_before_N,
+        0.0,
+        0.0,
+        tuple(reasons),
+    )
+
+
 def verdict_section(v: Verdict, gap: BaselineGap, search: CandidateSearch) -> dict[str, Any]:
     """The ``verdict`` section of the report (RMS by phase before / after on held-out trials)."""
     by_phase_after = stats_by_label(search.cv[search.chosen].residuals, gap.labels, PHASES)
@@ -127,9 +147,10 @@ def verdict_section(v: Verdict, gap: BaselineGap, search: CandidateSearch) -> di
         "shrink": v.shrink,
         "shrink_rms": v.shrink_rms,
         "confidence": float(np.clip(v.confidence, 0.0, 1.0)),
-        "explained_share": v.explained_share if v.label != "none" else 0.0,
+        "explained_share": v.explained_share if v.label not in ("none", "not_diagnosable") else 0.0,
         "best_candidate": list(search.chosen),
         "by_phase_before": {k: val["rms_N"] for k, val in by_phase_before.items()},
         "by_phase_after": {k: val["rms_N"] for k, val in by_phase_after.items()},
         "message": v.message,
+        "reasons": list(v.reasons),
     }

@@ -96,7 +96,6 @@ def _stage_tune(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) -> 
     d = result.to_dict()
     save_params(result.params, out / "controller.json", extra={"tuning": d})
     res.files["controller"] = out / "controller.json"
-    res.files["controller"].chmod(0o644)  # save_params writes through mkstemp (0600)
     (out / "tuning.txt").write_text(result.report() + "\n")
     res.files["tuning_txt"] = out / "tuning.txt"
     for key, path in plot_tuning(result, figs).items():

@@ -1,0 +1,121 @@
+"""Data the diagnosis cannot diagnose (issue 14): verdict ``not_diagnosable`` with a reason and
+no augmented model, for garbage made from clean synthetic trials; clean data stays diagnosable.
+
+References: the garbage is constructed so that the right answer is known (no signal, white
+noise, a permuted column, a copy, a sidecar thickness far from the truth), independent of the
+screens' thresholds; clean trials of the project's own synthesiser must pass every screen.
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+from grasprom import gap
+from grasprom.chain import kinematics as kin
+from grasprom.cli import main as cli_main
+from grasprom.gap.synth import synth_case, write_case
+
+CHAIN = kin.ChainParams()
+
+
+def _case(surrogate, effects=("tissue_stiffness_scale",), seed=3, n_trials=4):
+    return synth_case(effects, seed=seed, surrogate=surrogate, n_trials=n_trials,
+                      material="mr")  # fmt: skip
+
+
+def _diagnose(trials, surrogate):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return gap.diagnose(trials, surrogate, CHAIN)
+
+
+def _validated(case, surrogate, names=None):
+    names = names or [f"trial{i}.csv" for i in range(len(case.trials))]
+    return [gap.validate_trial(t.data, t.sidecar, n, CHAIN, surrogate)
+            for t, n in zip(case.trials, names)]  # fmt: skip
+
+
+def _zero(d, rng):
+    return d.assign(force_handle_N=0.0 * d.force_handle_N)
+
+
+def _noise(d, rng):
+    return d.assign(force_handle_N=rng.normal(0.0, 50.0, len(d)))
+
+
+def _shuffle(d, rng):
+    return d.assign(force_handle_N=rng.permutation(d.force_handle_N.to_numpy()))
+
+
+GARBAGE = [
+    (_zero, "no signal"),
+    (_noise, "far above the model's force scale"),
+    (_shuffle, "not a smooth signal of time"),
+]
+
+
+@pytest.mark.parametrize("mutate, needle", GARBAGE, ids=["zeros", "noise50N", "shuffled"])
+def test_garbage_force_column_is_not_diagnosable(surrogate, mutate, needle):
+    case = _case(surrogate)
+    rng = np.random.default_rng(0)
+    for t in case.trials:
+        t.data = mutate(t.data.drop(columns=["force_jaw_N"], errors="ignore"), rng)
+    d = _diagnose(_validated(case, surrogate), surrogate)
+    v = d.report["verdict"]
+    assert v["label"] == "not_diagnosable", v
+    assert d.augmented is None and v["effects"] == [] and v["shrink"] == 0.0
+    assert any(needle in r and "trial0.csv" in r for r in v["reasons"]), v["reasons"]
+
+
+def test_the_same_trial_twice_is_not_diagnosable(surrogate):
+    case = _case(surrogate, n_trials=2)
+    case.trials.append(case.trials[0])
+    names = ["a.csv", "b.csv", "a_copy.csv"]
+    v = _diagnose(_validated(case, surrogate, names), surrogate).report["verdict"]
+    assert v["label"] == "not_diagnosable"
+    assert any("a_copy.csv and a.csv hold the same samples" in r for r in v["reasons"])
+
+
+def test_a_sidecar_thickness_far_off_is_not_diagnosable(surrogate):
+    """Trials of a 2.0 mm wall declared 0.8 mm: the thickness error needed (+1.2 mm) is far
+    beyond the library's +-0.4 mm; whatever explains it must sit at a bound."""
+    case = synth_case((), seed=5, surrogate=surrogate, n_trials=4, material="le")
+    for t in case.trials:
+        t.sidecar = {**t.sidecar, "thickness_mm": 0.8}
+    truth = {
+        t.sidecar["thickness_mm"]
+        for t in synth_case((), seed=5, surrogate=surrogate, n_trials=4, material="le").trials
+    }
+    assert min(truth) >= 1.2  # the real walls are much thicker than declared
+    v = _diagnose(_validated(case, surrogate), surrogate).report["verdict"]
+    assert v["label"] == "not_diagnosable", v
+    assert any("at the bound of its range (6)" in r for r in v["reasons"]), v["reasons"]
+
+
+@pytest.mark.parametrize("effects", [(), ("tissue_stiffness_scale",)])
+def test_clean_trials_pass_every_screen(surrogate, effects):
+    v = _diagnose(_validated(_case(surrogate, effects), surrogate), surrogate).report["verdict"]
+    assert v["label"] != "not_diagnosable" and v["reasons"] == [], v
+    assert v["label"] == ("explained" if effects else "none")
+
+
+def test_cli_writes_no_augmented_model_and_removes_a_stale_one(surrogate, tmp_path, capsys):
+    case = _case(surrogate, n_trials=2)
+    rng = np.random.default_rng(1)
+    for t in case.trials:
+        t.data = _noise(t.data, rng)
+    paths = write_case(case, tmp_path / "trials")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "augmented_model.json").write_text("{}")  # left by an earlier run
+    rc = cli_main(["diagnose", *map(str, paths), "--fe", "fe_data/2d", "--out", str(out),
+                   "--no-plots"])  # fmt: skip
+    text = capsys.readouterr().out
+    assert rc == 0 and "VERDICT: not_diagnosable" in text and "no augmented model" in text
+    assert not (out / "augmented_model.json").exists()
+    rep = json.loads((out / "report.json").read_text())
+    assert rep["augmented_model"] is None and rep["verdict"]["reasons"]
