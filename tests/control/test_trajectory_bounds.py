@@ -48,3 +48,35 @@ def test_cli_simulate_names_the_file_and_writes_nothing(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "rad.csv" in err and "radians" in err and "Traceback" not in err
     assert not out.exists()
+
+
+def test_time_in_milliseconds_is_an_error_but_waypoints_pass(surrogate):
+    """A 1 kHz record written in ms (step 1, span 1000) is refused naming the column; a few
+    waypoints one second apart are a valid trajectory."""
+    import numpy as np
+
+    t = np.arange(0.0, 1000.0, 1.0)
+    with pytest.raises(ValueError, match=r"time_s.*milliseconds"):
+        simulate(_traj(t, np.linspace(22.0, 4.0, t.size)), ControllerParams(), surrogate)
+    out = simulate(_traj([0.0, 1.0, 2.0, 3.0], [22.0, 10.0, 4.0, 22.0]), ControllerParams(),
+                   surrogate)  # fmt: skip
+    assert len(out) == 3001
+
+
+def test_outputs_are_0644_whatever_the_umask(tmp_path):
+    """simulate's CSV and tune's controller.json were created 0600 (mkstemp); now 0644."""
+    import os
+
+    from grasprom.control import save_params
+
+    traj = tmp_path / "t.csv"
+    _traj([0.0, 0.5], [22.0, 5.0]).to_csv(traj, index=False)
+    old = os.umask(0o077)
+    try:
+        assert main(["simulate", "--trajectory", str(traj), "--out", str(tmp_path / "o.csv")]) == 0
+        save_params(ControllerParams(), tmp_path / "controller.json")
+    finally:
+        os.umask(old)
+    for name in ("o.csv", "controller.json"):
+        assert (tmp_path / name).stat().st_mode & 0o777 == 0o644, name
+    assert not list(tmp_path.glob("*.tmp")) and not list(tmp_path.glob(".*.tmp"))

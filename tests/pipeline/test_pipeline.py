@@ -175,10 +175,17 @@ def test_report_names_and_embeds_figures(built):
 
 
 def test_bad_fe_dir_names_the_stage(tmp_path):
+    """A missing --fe is a bad input (exit 2, no output folder); an FE folder without usable
+    cases fails the surrogate stage (exit 1, named, with a report of the failure)."""
     out = tmp_path / "out"
     res = _build(out, "--fe", str(tmp_path / "nope"), "--fast", "--quiet")
+    assert res.returncode == 2 and "--fe" in res.stderr and "nope" in res.stderr
+    assert not out.exists()
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    res = _build(out, "--fe", str(empty), "--fast", "--quiet")
     assert res.returncode == 1
-    assert "stage 'surrogate' failed" in res.stderr and "nope" in res.stderr
+    assert "stage 'surrogate' failed" in res.stderr and "empty" in res.stderr
     assert not (out / "surrogate.json").exists()
     assert "stage 'surrogate'" in (out / "report.html").read_text()
 
