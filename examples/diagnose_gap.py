@@ -51,6 +51,7 @@ def stiff_params(thickness_mm: float, material: str) -> ControllerParams:
     return ControllerParams(
         thickness_mm=thickness_mm,
         material=material,
+        rendering="coupling",  # the clipped default bounds the stiffness: not the static chain
         coupling_stiffness_N_per_mm=1e5,
         damping_Nms_per_rad=0.0,
         encoder_counts_per_rev=0,

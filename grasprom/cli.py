@@ -55,6 +55,7 @@ def _build_parser() -> argparse.ArgumentParser:
     _add_simulate_parser(sub)
     _add_tune_parser(sub)
     _add_export_parser(sub)
+    _add_identify_parser(sub)
     # subcommands with their own parsers (main() hands them the rest of the command line)
     sub.add_parser(
         "diagnose",
@@ -67,6 +68,46 @@ def _build_parser() -> argparse.ArgumentParser:
         help="synthetic 'real' trials with withheld effects (grasprom synth -h)",
     )
     return p
+
+
+def _add_identify_parser(sub) -> None:
+    i = sub.add_parser(
+        "identify",
+        help="identify the haptic device (inertia, damping, friction) from free-motion trials",
+        description="Identify handle inertia, viscous damping and Coulomb friction of the "
+        "device alone (no tissue, no hand) from free-motion trials: CSV columns time_s (s), "
+        "theta_deg (deg), torque_Nm (motor torque, N m). Writes the device JSON of "
+        "'grasprom tune --device' with the uncertainties.",
+    )
+    i.add_argument("trials", nargs="+", metavar="TRIAL.csv", help="free-motion trials")
+    i.add_argument("--out", required=True, metavar="JSON", help="device JSON to write")
+    i.add_argument("--controller", default=None, metavar="JSON",
+                   help="controller parameters: chain (L3, end stops) and pulley radius "
+                   "(default: the defaults)")  # fmt: skip
+    i.add_argument("--device", default=None, metavar="JSON",
+                   help="base device whose other values (torque constant, current limit, "
+                   "delay, encoder) the written file keeps (default: the defaults)")  # fmt: skip
+
+
+def _cmd_identify(args: argparse.Namespace) -> int:
+    from grasprom.control import ControllerParams, load_params
+    from grasprom.fe.atomicio import atomic_write_json
+    from grasprom.gap.identify import identify_device, load_device_trial
+
+    try:
+        params = load_params(args.controller) if args.controller else ControllerParams()
+        base = _load_device_option(args.device)
+        trials = [load_device_trial(t) for t in args.trials]
+        res = identify_device(trials, params.chain_params, params.pulley_radius_mm, base)
+    except (OSError, ValueError) as exc:
+        return _error("identify", exc)
+    try:
+        atomic_write_json(args.out, res.to_dict())
+    except OSError as exc:
+        return _error("identify", f"--out {args.out}: cannot write ({exc.strerror or exc})")
+    print(res.format())
+    print(f"wrote {args.out} (use: grasprom tune --device {args.out})")
+    return 0
 
 
 def _add_sweep_parser(sub) -> None:
@@ -1160,6 +1201,8 @@ def main(argv: Sequence[str] | None = None, *, runner=None) -> int:
         return _cmd_tune(args)
     if args.command == "export":
         return _cmd_export(args)
+    if args.command == "identify":
+        return _cmd_identify(args)
     return _cmd_report(args)
 
 

@@ -166,7 +166,7 @@ def device_from_dict(d: dict[str, Any], source: str = "device") -> DeviceParams:
     ----------
     d : dict
         Keys of :class:`DeviceParams` (plus the optional ``format``, ``format_version``,
-        ``comment``).
+        ``comment``, ``identification``).
     source : str
         Name of the file (or object) in the error messages.
 
@@ -182,6 +182,7 @@ def device_from_dict(d: dict[str, Any], source: str = "device") -> DeviceParams:
     if version != DEVICE_FILE_VERSION:
         raise ValueError(f"{source}: format_version {version!r}, expected {DEVICE_FILE_VERSION}")
     d.pop("comment", None)
+    d.pop("identification", None)  # written by grasprom identify (values, uncertainties)
     known = [f.name for f in fields(DeviceParams)]
     unknown = sorted(set(d) - set(known))
     if unknown:

@@ -254,7 +254,7 @@ def diagnose(
     preps, warn_list = _contact_trials(trials, surrogate, chain, rate_hz)
     gap = baseline_gap(preps, surrogate, chain)
     search = search_candidates(preps, cands, gap, surrogate, chain, try_pairs)
-    verdict = judge(gap, search, len(preps))
+    verdict = judge(gap, search, len(preps), [p.sigma for p in preps])
     chosen_fit = fit_effects(preps, search.chosen, surrogate, chain)
     reasons = screen_trials(preps)
     if not reasons and verdict.label == "explained":

@@ -21,6 +21,39 @@ from grasprom.gap.stats import rms, stats_by_label
 
 VERDICTS = ("explained", "none", "unexplained", "not_diagnosable")
 
+PHASE_SHARE_SIGNIFICANT = 0.15
+"""Share of the baseline's systematic chi2 from which a phase counts for the verdict."""
+PHASE_WORSE = 1.1
+"""Held-out systematic chi2 of a phase above this multiple of the baseline's = worse."""
+
+
+def worse_phases(
+    gap: BaselineGap, search: CandidateSearch, sigmas: Sequence[np.ndarray]
+) -> list[str]:
+    """Phases carrying >= :data:`PHASE_SHARE_SIGNIFICANT` of the systematic gap (weighted chi2
+    less the sample count, as the explained share) whose held-out systematic chi2 the chosen
+    effect set makes worse (> :data:`PHASE_WORSE` x the baseline's), each as a sentence with
+    the RMS before and after (N)."""
+    lab = np.concatenate(gap.labels)
+    sig = np.concatenate(sigmas)
+    r0 = np.concatenate(gap.residuals)
+    r1 = np.concatenate(search.cv[search.chosen].residuals)
+    sys0 = {k: float(np.sum((r0[lab == i] / sig[lab == i]) ** 2)) - np.sum(lab == i)
+            for i, k in enumerate(PHASES)}  # fmt: skip
+    sys1 = {k: float(np.sum((r1[lab == i] / sig[lab == i]) ** 2)) - np.sum(lab == i)
+            for i, k in enumerate(PHASES)}  # fmt: skip
+    total = sum(max(v, 0.0) for v in sys0.values())
+    out = []
+    for i, k in enumerate(PHASES):
+        share = max(sys0[k], 0.0) / total if total > 0 else 0.0
+        if share >= PHASE_SHARE_SIGNIFICANT and sys1[k] > PHASE_WORSE * sys0[k]:
+            m = lab == i
+            out.append(
+                f"{k} ({100 * share:.0f} % of the gap): held-out RMS "
+                f"{rms([r0[m]]):.3g} -> {rms([r1[m]]):.3g} N"
+            )
+    return out
+
 
 @dataclass
 class Verdict:
@@ -83,7 +116,12 @@ def _classify(
     return "unexplained", [], conf, msg
 
 
-def judge(gap: BaselineGap, search: CandidateSearch, n_trials: int) -> Verdict:
+def judge(
+    gap: BaselineGap,
+    search: CandidateSearch,
+    n_trials: int,
+    sigmas: Sequence[np.ndarray] | None = None,
+) -> Verdict:
     """The verdict on the selected effect set (confidence capped at 0.3 for a single trial).
 
     Parameters
@@ -92,6 +130,9 @@ def judge(gap: BaselineGap, search: CandidateSearch, n_trials: int) -> Verdict:
     search : CandidateSearch
     n_trials : int
         Trials in contact.
+    sigmas : sequence of ndarray, optional
+        Standard deviation of every sample (N) per trial: with them an ``explained`` set that
+        makes a significant phase worse held-out (:func:`worse_phases`) is ``unexplained``.
 
     Returns
     -------
@@ -103,6 +144,15 @@ def judge(gap: BaselineGap, search: CandidateSearch, n_trials: int) -> Verdict:
     rms_after = rms(search.cv[chosen].residuals)
     sep = _separation(search, e_share)
     label, effects_out, conf, msg = _classify(gap, chosen, e_share, sep)
+    worse = worse_phases(gap, search, sigmas) if label == "explained" and sigmas else []
+    if worse:
+        label, effects_out = "unexplained", []
+        conf = 0.5
+        msg = (
+            f"{' + '.join(chosen)} explains {100 * min(e_share, 1.0):.0f} % of the systematic "
+            f"gap overall but makes the held-out prediction worse in {'; '.join(worse)}: not "
+            "an explanation of the gap"
+        )
     if label != "explained":
         rms_after = rms_before
     if n_trials < 2:
