@@ -563,6 +563,17 @@ ROWS += [
     ("synth-seed-text", ["synth", "--fe", FE2D, "--out", "{out}", "--seed", "x"], None,
      "--seed"),
     ("synth-out-proc", ["synth", "--fe", FE2D, "--out", "/proc/nope"], None, "/proc/nope"),
+    # ------------------------------------------------------------------ identify
+    ("identify-missing", ["identify", "{tmp}/free.csv", "--out", "{out}"], None, "free.csv"),
+    ("identify-no-torque", ["identify", "{f}", "--out", "{out}"], ("free.csv", GOOD_TRAJ),
+     "torque_Nm"),
+    ("identify-still", ["identify", "{f}", "--out", "{out}"],
+     ("free.csv", pd.DataFrame({"time_s": _T, "theta_deg": 11.0, "torque_Nm": 0.0}).to_csv(
+         index=False)), "usable samples"),
+    ("identify-device-bad", ["identify", "{traj}", "--device", "{f}", "--out", "{out}"],
+     ("d.json", _j({"inertia_kg_m2": 0})), "inertia_kg_m2"),
+    ("identify-controller-bad", ["identify", "{traj}", "--controller", "{f}", "--out", "{out}"],
+     ("c.json", _j({"pulley_radius_mm": -1})), "pulley_radius_mm"),
 ]  # fmt: skip
 
 
@@ -572,7 +583,7 @@ def test_the_table_is_large_and_covers_every_command():
     assert len(ROWS) >= 100 and len({r[0] for r in ROWS}) == len(ROWS)
     assert commands >= {"sweep", "report", "surrogate build", "surrogate check",
                         "surrogate plot", "simulate", "tune", "export fmu", "export arduino",
-                        "build", "diagnose", "synth"}  # fmt: skip
+                        "build", "diagnose", "synth", "identify"}  # fmt: skip
 
 
 @pytest.fixture(scope="module")
