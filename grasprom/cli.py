@@ -902,6 +902,17 @@ def _build_inputs_error(args: argparse.Namespace, fe_dir: Path) -> str | None:
     creates ``--out`` (so that a bad input leaves no output folder behind)."""
     if not fe_dir.is_dir():
         return f"--fe {args.fe}: FE sweep directory {fe_dir} does not exist"
+    from grasprom.fe import MATERIAL_NAMES
+
+    found = {p.name.split("_t")[0] for p in fe_dir.glob("*_t*.csv")}
+    missing = [m for m in MATERIAL_NAMES if m not in found]
+    if found and missing:
+        return (
+            f"--fe {args.fe}: the sweep has {', '.join(sorted(found))} but the FMU and Arduino "
+            f"exports carry every material ({', '.join(MATERIAL_NAMES)}); missing "
+            f"{', '.join(missing)}: add them with grasprom sweep --material "
+            f"{','.join(MATERIAL_NAMES)} (same --thickness and --out)"
+        )
     if args.augmented:
         from grasprom.gap import load_augmented
 

@@ -594,6 +594,11 @@ def inputs(tmp_path_factory, surrogate):
     traj = d / "traj.csv"
     traj.write_text(GOOD_TRAJ)
     out = {"sur": str(sur), "traj": str(traj)}
+    one = d / "one_material"  # a sweep of mr only (issue 16: failed late, in stage fmu)
+    one.mkdir()
+    for f in (ROOT / "fe_data" / "2d").glob("mr_t1.*"):
+        (one / f.name).write_bytes(f.read_bytes())
+    out["one_material"] = str(one)
     t = np.arange(0.0, 2.0, 2e-3)
     th = np.clip(22.0 - 20.0 * t, 2.0, 22.0)
     good = pd.DataFrame({"time_s": t, "theta_deg": th, "force_handle_N": 0.5 + 0.1 * t})
