@@ -302,9 +302,12 @@ def _add_simulate_parser(sub) -> None:
         "theta_deg) at the controller rate and write the rendered forces and torque.",
     )
     m.add_argument("--trajectory", required=True, metavar="CSV", help="columns time_s, theta_deg")
-    m.add_argument("--thickness", type=float, default=None, metavar="MM", help="wall thickness")
-    m.add_argument("--material", default=None, help="mr, nh or le")
-    m.add_argument("--controller", default=None, metavar="JSON", help="controller parameters")
+    m.add_argument("--thickness", type=float, default=None, metavar="MM",
+                   help="wall thickness in mm (default: the controller's, 1.4)")  # fmt: skip
+    m.add_argument("--material", default=None,
+                   help="mr, nh or le (default: the controller's, mr)")  # fmt: skip
+    m.add_argument("--controller", default=None, metavar="JSON",
+                   help="controller parameters (default: the documented defaults)")  # fmt: skip
     m.add_argument(
         "--augmented",
         default=None,
@@ -597,7 +600,8 @@ def _add_tune_parser(sub) -> None:
     _add_rendering_option(t)
     _add_device_option(t)
     t.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
-    t.add_argument("--out", default="tuning", metavar="DIR", help="output directory")
+    t.add_argument("--out", default="tuning", metavar="DIR",
+                   help="output directory (default tuning)")  # fmt: skip
 
 
 def _add_rendering_option(p: argparse.ArgumentParser) -> None:
@@ -701,7 +705,9 @@ def _add_export_parser(sub) -> None:
     f.add_argument("--out", required=True, metavar="FMU", help="FMU file to write")
     f.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (default 2)")
     _add_surrogate_source(f)
-    f.add_argument("--params", default=None, metavar="JSON", help="controller parameters")
+    f.add_argument("--params", default=None, metavar="JSON",
+                   help="controller parameters, e.g. controller.json of 'grasprom tune' "
+                   "(default: the documented defaults, untuned)")  # fmt: skip
     _add_augmented_export(f)
     a = esub.add_parser(
         "arduino",
@@ -712,7 +718,9 @@ def _add_export_parser(sub) -> None:
     )
     a.add_argument("--out", required=True, metavar="DIR", help="output directory")
     _add_surrogate_source(a)
-    a.add_argument("--params", default=None, metavar="JSON", help="controller parameters")
+    a.add_argument("--params", default=None, metavar="JSON",
+                   help="controller parameters, e.g. controller.json of 'grasprom tune' "
+                   "(default: the documented defaults, untuned)")  # fmt: skip
     a.add_argument(
         "--tol",
         type=_tolerance,
@@ -748,7 +756,10 @@ def _add_export_parser(sub) -> None:
         "home_count, timeouts, watchdog_ms, baud, ...); --driver/--homing/--pwm-hz win",
     )
     a.add_argument(
-        "--float", dest="fixed_point", action="store_false", help="float build instead of Q-format"
+        "--float",
+        dest="fixed_point",
+        action="store_false",
+        help="float build instead of Q-format (default: Q-format fixed point)",
     )
     _add_augmented_export(a)
 
@@ -980,7 +991,10 @@ def _diagnose_parser() -> argparse.ArgumentParser:
         description="Diagnose the sim-to-real gap of measured grasp trials: where it lies, "
         "which unmodelled effect causes it, how far it shrinks once added.",
     )
-    p.add_argument("trials", nargs="+", metavar="TRIAL.csv", help="trial CSVs (sidecar .json)")
+    p.add_argument("trials", nargs="+", metavar="TRIAL.csv",
+                   help="trial CSVs: time_s (s), theta_deg (deg), force_handle_N (N), optional "
+                   "force_jaw_N (N) and gap_mm (mm); each with a sidecar TRIAL.json giving "
+                   "thickness_mm and material")  # fmt: skip
     p.add_argument("--out", required=True, metavar="DIR", help="output directory")
     src = p.add_mutually_exclusive_group()
     src.add_argument("--surrogate", default=None, metavar="FILE", help="surrogate JSON")
@@ -1049,7 +1063,7 @@ def _synth_parser() -> argparse.ArgumentParser:
         "--effect",
         default="",
         metavar="NAME[,NAME]",
-        help=f"effect(s) to add (none = noise only); from {','.join(SYNTH_EFFECTS)}",
+        help=f"effect(s) to add (none = noise only); from {', '.join(SYNTH_EFFECTS)}",
     )
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--trials", type=int, default=4, help="number of trials (default 4)")

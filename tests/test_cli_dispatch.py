@@ -24,3 +24,32 @@ def test_diagnose_bad_input_exit_code(tmp_path, capsys):
     bad.write_text("time_s,theta_deg\n0,1\n")
     assert main(["diagnose", str(bad), "--out", str(tmp_path / "o")]) == 2
     assert "t.csv" in capsys.readouterr().err
+
+
+def test_every_option_with_a_default_states_it_in_its_help():
+    """Issue 16: `--help` left defaults out (simulate --thickness, tune --out...). Every
+    optional option whose default is a value (not None/False) says "default" in its help, and
+    the option lists do not wrap mid-word (comma lists carry spaces)."""
+    import argparse
+
+    from grasprom.cli import _build_parser, _diagnose_parser, _synth_parser
+
+    missing = []
+
+    def walk(p, name):
+        for a in p._actions:
+            if isinstance(a, argparse._SubParsersAction):
+                for n, sp in a.choices.items():
+                    walk(sp, f"{name} {n}")
+            elif (a.option_strings and not a.required and a.help
+                  and a.default not in (None, False, "", argparse.SUPPRESS)
+                  and not isinstance(a, argparse._HelpAction | argparse._VersionAction)
+                  and "default" not in a.help.lower()):  # fmt: skip
+                missing.append(f"{name} {a.option_strings[0]}")
+            if a.help and len(max(a.help.split(), key=len, default="")) > 40:
+                missing.append(f"{name} {a.dest}: a {len(a.help)}-char word wraps mid-word")
+
+    walk(_build_parser(), "grasprom")
+    walk(_diagnose_parser(), "grasprom diagnose")
+    walk(_synth_parser(), "grasprom synth")
+    assert not missing, missing
