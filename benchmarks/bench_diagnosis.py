@@ -155,6 +155,32 @@ def block_confusion(results: list[dict]) -> dict[str, Counter]:
     return out
 
 
+CONF_BINS = (0.0, 0.2, 0.4, 0.6, 0.8, 1.0001)
+"""Confidence bins of the reliability table."""
+
+
+def calibration(results: list[dict]) -> dict:
+    """Reliability of the stated confidence of ``explained`` verdicts: per bin the count, mean
+    confidence and observed accuracy (exact truth set; out-of-library: always wrong), and the
+    expected calibration error (count-weighted |confidence - accuracy|)."""
+    rows, ece, n_all = [], 0.0, 0
+    expl = [r for r in results if r["label"] == "explained"]
+    for lo, hi in zip(CONF_BINS[:-1], CONF_BINS[1:]):
+        rs = [r for r in expl if lo <= r["confidence"] < hi]
+        if not rs:
+            rows.append({"bin": [lo, min(hi, 1.0)], "n": 0})
+            continue
+        ok = [r["kind"] in ("single", "pair") and sorted(r["predicted"]) == sorted(r["effects"])
+              for r in rs]  # fmt: skip
+        acc = float(np.mean(ok))
+        conf = float(np.mean([r["confidence"] for r in rs]))
+        rows.append({"bin": [lo, min(hi, 1.0)], "n": len(rs), "confidence": conf,
+                     "accuracy": acc})  # fmt: skip
+        ece += len(rs) * abs(conf - acc)
+        n_all += len(rs)
+    return {"bins": rows, "ece": ece / n_all if n_all else float("nan")}
+
+
 def summarise(results: list[dict]) -> dict:
     """Headline figures of a list of :func:`run_case` results."""
     lib = [r for r in results if r["kind"] in ("single", "pair")]
@@ -210,6 +236,7 @@ def summarise(results: list[dict]) -> dict:
         else float("nan"),
         "ool_blocks": dict(Counter(r["where"]["block"] for r in ool)),
         "mean_seconds": float(np.mean([r["seconds"] for r in results])),
+        "calibration": calibration(results),
     }
 
 
@@ -268,6 +295,15 @@ def print_report(results: list[dict]) -> None:
             )
             print(f"    {e:<24} " + ", ".join(f"{k} {n}" for k, n in sorted(c.items())))
     s = summarise(results)
+    print("\nReliability of the stated confidence (explained verdicts; accuracy = exact truth set)")
+    print(f"  {'confidence':<12}{'n':>5}{'stated':>9}{'observed':>10}")
+    for b in s["calibration"]["bins"]:
+        lo, hi = b["bin"]
+        if b["n"]:
+            print(f"  {lo:.1f}-{hi:.1f}    {b['n']:5d}{b['confidence']:9.2f}{b['accuracy']:10.2f}")
+        else:
+            print(f"  {lo:.1f}-{hi:.1f}    {0:5d}")
+    print(f"  expected calibration error: {100 * s['calibration']['ece']:.1f} points")
     print("\nSummary")
     print(f"  cases: {s['n_cases']}, mean {s['mean_seconds']:.1f} s per case")
     print(

@@ -60,7 +60,7 @@ from grasprom.gap.prepare import ANALYSIS_RATE_HZ, PHASES, PreparedTrial, prepar
 from grasprom.gap.screening import bound_reasons, screen_trials
 from grasprom.gap.selection import CandidateSearch, effect_row, search_candidates
 from grasprom.gap.trials import FloatArray, Trial
-from grasprom.gap.verdict import Verdict, judge, not_diagnosable, verdict_section
+from grasprom.gap.verdict import Verdict, checked_verdict, judge, not_diagnosable, verdict_section
 from grasprom.surrogate import Surrogate
 
 
@@ -255,6 +255,9 @@ def diagnose(
     gap = baseline_gap(preps, surrogate, chain)
     search = search_candidates(preps, cands, gap, surrogate, chain, try_pairs)
     verdict = judge(gap, search, len(preps), [p.sigma for p in preps])
+    measured = _where(gap, "none", search.chosen)["block"]
+    blocks = frozenset(EFFECTS[e].block for e in search.chosen)
+    verdict = checked_verdict(verdict, search, None if measured == "unknown" else measured, blocks)
     chosen_fit = fit_effects(preps, search.chosen, surrogate, chain)
     reasons = screen_trials(preps)
     if not reasons and verdict.label == "explained":

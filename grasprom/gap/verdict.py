@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -166,6 +166,45 @@ def judge(
     return Verdict(
         label, effects_out, conf, msg, e_share, rms_before, rms_after, shrink, shrink_rms
     )
+
+
+TIE_SHARE = 0.05
+"""A runner-up within this explained share of the chosen set explains the data as well."""
+
+
+def runner_up(search: CandidateSearch) -> tuple[str, ...] | None:
+    """The best other single effect (or pair) if it explains within :data:`TIE_SHARE` of the
+    chosen set's share, else None."""
+    chosen = search.chosen
+    others = [k for k in (*search.singles, *search.pair_rows) if k != chosen]
+    if not others:
+        return None
+    best = max(others, key=search.share)
+    return best if search.share(best) >= search.share(chosen) - TIE_SHARE else None
+
+
+def checked_verdict(v: Verdict, search: CandidateSearch, measured_block: str | None,
+                    chosen_blocks: frozenset[str]) -> Verdict:  # fmt: skip
+    """An ``explained`` verdict with its confidence lowered (halved) and the reason added to
+    its message when a runner-up explains the data as well (:func:`runner_up`, named) or when
+    the block the measured channels put the gap in (None: not measured) is none of the blocks
+    of the explaining effects.
+    """
+    if v.label != "explained":
+        return v
+    notes = []
+    tie = runner_up(search)
+    if tie is not None:
+        notes.append(f"{' + '.join(tie)} explains it about as well "
+                     f"({100 * search.share(tie):.0f} %)")  # fmt: skip
+    if measured_block is not None and measured_block not in chosen_blocks:
+        notes.append(f"the measured channels put the gap in the {measured_block} block, the "
+                     f"explaining effect acts in the {'/'.join(sorted(chosen_blocks))} "
+                     "block")  # fmt: skip
+    if not notes:
+        return v
+    conf = v.confidence * 0.5 ** len(notes)
+    return replace(v, confidence=conf, message=v.message + "; but " + "; and ".join(notes))
 
 
 def not_diagnosable(v: Verdict, reasons: Sequence[str]) -> Verdict:

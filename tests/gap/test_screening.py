@@ -119,3 +119,34 @@ def test_cli_writes_no_augmented_model_and_removes_a_stale_one(surrogate, tmp_pa
     assert not (out / "augmented_model.json").exists()
     rep = json.loads((out / "report.json").read_text())
     assert rep["augmented_model"] is None and rep["verdict"]["reasons"]
+
+
+def _search(shares: dict):
+    from types import SimpleNamespace
+
+    keys = list(shares)
+    return SimpleNamespace(chosen=keys[0], singles=[k for k in keys if len(k) == 1],
+                           pair_rows=[k for k in keys if len(k) == 2],
+                           share=lambda k: shares[k])  # fmt: skip
+
+
+def test_confidence_is_lowered_for_a_tie_and_a_block_disagreement():
+    """Issue 15: two candidates explaining equally well are both named, and a verdict whose
+    effect acts in another block than the measured channels say both halve the confidence."""
+    from grasprom.gap.verdict import Verdict, checked_verdict
+
+    v = Verdict("explained", ["backlash"], 0.8, "backlash explains 90 %", 0.9, 1.0, 0.2, 0.9, 0.8)
+    clear = _search({("backlash",): 0.9, ("latency",): 0.3})
+    assert checked_verdict(v, clear, "mechanism", frozenset({"mechanism"})) == v
+    tie = _search({("backlash",): 0.9, ("jaw_compliance",): 0.88})
+    t = checked_verdict(v, tie, "mechanism", frozenset({"mechanism"}))
+    assert t.confidence == pytest.approx(0.4) and "jaw_compliance explains it about as well" in (
+        t.message
+    )
+    b = checked_verdict(v, clear, "tissue", frozenset({"mechanism"}))
+    assert b.confidence == pytest.approx(0.4) and "tissue block" in b.message
+    both = checked_verdict(v, tie, "sensor", frozenset({"mechanism"}))
+    assert both.confidence == pytest.approx(0.2)
+    assert checked_verdict(v, clear, None, frozenset({"mechanism"})) == v  # block not measured
+    none = Verdict("none", [], 0.9, "within noise", 0.0, 1.0, 1.0, 0.0, 0.0)
+    assert checked_verdict(none, tie, "tissue", frozenset({"mechanism"})) == none
