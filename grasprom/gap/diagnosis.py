@@ -60,7 +60,14 @@ from grasprom.gap.prepare import ANALYSIS_RATE_HZ, PHASES, PreparedTrial, prepar
 from grasprom.gap.screening import bound_reasons, screen_trials
 from grasprom.gap.selection import CandidateSearch, effect_row, search_candidates
 from grasprom.gap.trials import FloatArray, Trial
-from grasprom.gap.verdict import Verdict, checked_verdict, judge, not_diagnosable, verdict_section
+from grasprom.gap.verdict import (
+    Verdict,
+    calibrated,
+    checked_verdict,
+    judge,
+    not_diagnosable,
+    verdict_section,
+)
 from grasprom.surrogate import Surrogate
 
 
@@ -258,6 +265,7 @@ def diagnose(
     measured = _where(gap, "none", search.chosen)["block"]
     blocks = frozenset(EFFECTS[e].block for e in search.chosen)
     verdict = checked_verdict(verdict, search, None if measured == "unknown" else measured, blocks)
+    verdict = calibrated(verdict, len(preps))
     chosen_fit = fit_effects(preps, search.chosen, surrogate, chain)
     reasons = screen_trials(preps)
     if not reasons and verdict.label == "explained":

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from grasprom.gap.baseline import BaselineGap
-from grasprom.gap.criteria import EXPLAINED_SHARE, SIGNIFICANT_RHO
+from grasprom.gap.criteria import CONFIDENCE_PLATT, EXPLAINED_SHARE, SIGNIFICANT_RHO
 from grasprom.gap.prepare import PHASES
 from grasprom.gap.selection import CandidateSearch
 from grasprom.gap.stats import rms, stats_by_label
@@ -69,6 +69,7 @@ class Verdict:
     shrink: float
     shrink_rms: float
     reasons: tuple[str, ...] = ()
+    confidence_raw: float | None = None
 
 
 def _separation(search: CandidateSearch, e_share: float) -> float:
@@ -207,6 +208,18 @@ def checked_verdict(v: Verdict, search: CandidateSearch, measured_block: str | N
     return replace(v, confidence=conf, message=v.message + "; but " + "; and ".join(notes))
 
 
+def calibrated(v: Verdict, n_trials: int) -> Verdict:
+    """An ``explained`` verdict with its confidence calibrated (:data:`CONFIDENCE_PLATT`; the
+    raw value kept as ``confidence_raw``), capped at 0.3 for a single trial."""
+    if v.label != "explained":
+        return v
+    a, b = CONFIDENCE_PLATT
+    conf = 1.0 / (1.0 + math.exp(-(a + b * v.confidence)))
+    if n_trials < 2:
+        conf = min(conf, 0.3)
+    return replace(v, confidence=conf, confidence_raw=v.confidence)
+
+
 def not_diagnosable(v: Verdict, reasons: Sequence[str]) -> Verdict:
     """The verdict ``not_diagnosable`` in place of ``v``: no effects, no shrink, confidence 1
     in the refusal, the reasons as the message."""
@@ -236,6 +249,7 @@ def verdict_section(v: Verdict, gap: BaselineGap, search: CandidateSearch) -> di
         "shrink": v.shrink,
         "shrink_rms": v.shrink_rms,
         "confidence": float(np.clip(v.confidence, 0.0, 1.0)),
+        "confidence_raw": v.confidence_raw,
         "explained_share": v.explained_share if v.label not in ("none", "not_diagnosable") else 0.0,
         "best_candidate": list(search.chosen),
         "by_phase_before": {k: val["rms_N"] for k, val in by_phase_before.items()},
