@@ -150,3 +150,18 @@ def test_confidence_is_lowered_for_a_tie_and_a_block_disagreement():
     assert checked_verdict(v, clear, None, frozenset({"mechanism"})) == v  # block not measured
     none = Verdict("none", [], 0.9, "within noise", 0.0, 1.0, 1.0, 0.0, 0.0)
     assert checked_verdict(none, tie, "tissue", frozenset({"mechanism"})) == none
+
+
+def test_calibrated_confidence_is_monotone_capped_and_only_for_explained():
+    from grasprom.gap.verdict import Verdict, calibrated
+
+    def v(label, c):
+        return Verdict(label, ["backlash"] if label == "explained" else [], c, "m", 0.9, 1.0,
+                       0.2, 0.9, 0.8)  # fmt: skip
+
+    raw = [0.0, 0.1, 0.3, 0.6, 0.9, 1.0]
+    cal = [calibrated(v("explained", c), 4).confidence for c in raw]
+    assert all(b > a for a, b in zip(cal, cal[1:])) and 0.4 < cal[0] and cal[-1] < 1.0
+    assert calibrated(v("explained", 0.9), 4).confidence_raw == 0.9
+    assert calibrated(v("explained", 0.9), 1).confidence == 0.3  # one trial: capped
+    assert calibrated(v("unexplained", 0.9), 4).confidence == 0.9
