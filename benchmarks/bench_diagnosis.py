@@ -82,10 +82,40 @@ def case_list(seed: int, per_effect: int, n_null: int, n_ool: int) -> list[dict]
     return cases
 
 
-def run_case(case: dict, n_trials: int = 4, gap_channel: bool = False) -> dict:
+ACQUISITIONS = ("ideal", "coarse", "jitter", "500hz", "2khz", "realistic")
+"""Acquisition conditions applied to the synthetic trials (``--acquisition``): ``coarse`` a
+0.1 deg angle encoder, ``jitter`` time stamps jittered by +-30 % of the sample period,
+``500hz`` / ``2khz`` resampled, ``realistic`` coarse + jitter + 500 Hz."""
+
+
+def acquire(df, mode: str, rng: np.random.Generator):
+    """A synthetic trial as an acquisition ``mode`` would record it (see :data:`ACQUISITIONS`)."""
+    import pandas as pd
+
+    if mode == "ideal":
+        return df
+    t = df["time_s"].to_numpy()
+    dt = float(np.median(np.diff(t)))
+    if mode in ("500hz", "realistic"):
+        df = df.iloc[:: max(int(round(0.002 / dt)), 1)].reset_index(drop=True)
+    if mode == "2khz":
+        t2 = np.arange(t[0], t[-1], 0.0005)
+        df = pd.DataFrame({c: np.interp(t2, t, df[c].to_numpy()) for c in df.columns})
+    if mode in ("coarse", "realistic"):
+        df = df.assign(theta_deg=np.round(df["theta_deg"].to_numpy() / 0.1) * 0.1)
+    if mode in ("jitter", "realistic"):
+        tt = df["time_s"].to_numpy()
+        step = float(np.median(np.diff(tt)))
+        df = df.assign(time_s=tt + rng.uniform(-0.3, 0.3, tt.size) * step)
+    return df
+
+
+def run_case(case: dict, n_trials: int = 4, gap_channel: bool = False,
+             acquisition: str = "ideal") -> dict:  # fmt: skip
     """Synthesise and diagnose one case; returns truth, verdict and timing.
 
-    ``gap_channel`` adds the measured jaw gap ``gap_mm`` to the synthetic trials.
+    ``gap_channel`` adds the measured jaw gap ``gap_mm`` to the synthetic trials;
+    ``acquisition`` records them as :func:`acquire` says.
     """
     from grasprom.chain import kinematics as kin
     from grasprom.gap import diagnose, synth_case, validate_trial
@@ -96,8 +126,11 @@ def run_case(case: dict, n_trials: int = 4, gap_channel: bool = False) -> dict:
     sc = synth_case(
         case["effects"], seed=case["seed"], surrogate=s, n_trials=n_trials, gap_channel=gap_channel
     )
+    rng = np.random.default_rng(case["seed"] + 17)
     trials = [
-        validate_trial(t.data, t.sidecar, f"case{case['seed']}_{i}", chain, s)
+        validate_trial(
+            acquire(t.data, acquisition, rng), t.sidecar, f"case{case['seed']}_{i}", chain, s
+        )  # fmt: skip
         for i, t in enumerate(sc.trials)
     ]
     with warnings.catch_warnings():
@@ -344,6 +377,8 @@ def main(argv=None) -> int:
         help="trials carry a measured jaw gap gap_mm (laser sensor, 5-10 um rms)",
     )
     p.add_argument("--json", default=None, help="write all case results here")
+    p.add_argument("--acquisition", choices=ACQUISITIONS, default="ideal",
+                   help="how the synthetic trials are recorded (default ideal)")  # fmt: skip
     args = p.parse_args(argv)
     cases = case_list(args.seed, args.per_effect, args.null, args.ool)
     t0 = time.perf_counter()
@@ -355,13 +390,15 @@ def main(argv=None) -> int:
                     cases,
                     [args.trials] * len(cases),
                     [args.gap_channel] * len(cases),
+                    [args.acquisition] * len(cases),
                     chunksize=2,
                 )
             )
     else:
-        results = [run_case(c, args.trials, args.gap_channel) for c in cases]
+        results = [run_case(c, args.trials, args.gap_channel, args.acquisition) for c in cases]
     if args.gap_channel:
         print("Trials with the measured jaw gap gap_mm (--gap-channel)\n")
+    print(f"Acquisition: {args.acquisition}, {args.trials} trials per case, seed {args.seed}\n")
     print_report(results)
     print(f"  wall time {time.perf_counter() - t0:.0f} s with {args.workers} worker(s)")
     if args.json:

@@ -25,7 +25,7 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from grasprom.chain import kinematics as kin
-from grasprom.gap.signals import encoder_quantum, noise_sigma
+from grasprom.gap.signals import dequantise, encoder_quantum, noise_sigma
 from grasprom.gap.trials import FloatArray, Trial
 from grasprom.surrogate import Surrogate
 
@@ -59,6 +59,7 @@ class PreparedTrial:
     F0: FloatArray | None = None
     noise_N: float = float("nan")
     quantum_deg: float = 0.0
+    quantum_eff_deg: FloatArray | float = 0.0  # per-sample angle uncertainty (deg), see below
     cache: dict = field(default_factory=dict)
 
 
@@ -106,7 +107,10 @@ def _add_baseline(
     p.F0 = f0
     sig = p.noise_N if math.isfinite(p.noise_N) and p.noise_N > 0 else 0.01
     p.sigma = np.sqrt(
-        sig**2 + (slope * p.quantum_deg) ** 2 / 12.0 + (SURROGATE_REL_UNCERTAINTY * f0) ** 2 + 1e-8
+        sig**2
+        + (slope * p.quantum_eff_deg) ** 2 / 12.0
+        + (SURROGATE_REL_UNCERTAINTY * f0) ** 2
+        + 1e-8
     )
     return g, fe
 
@@ -153,7 +157,9 @@ def prepare_trial(
     -------
     PreparedTrial
     """
-    raw_t, raw_th = trial.time_s, trial.theta_deg
+    raw_t = trial.time_s
+    quantum = encoder_quantum(trial.theta_deg)
+    raw_th, moving = dequantise(raw_t, trial.theta_deg)  # the angle between the counts
     dt = float(np.median(np.diff(raw_t)))
     stride = max(int(round(1.0 / (rate_hz * dt))), 1)
     idx = np.arange(0, raw_t.size, stride)
@@ -171,7 +177,11 @@ def prepare_trial(
         F=trial.force_handle_N[idx],
     )
     p.noise_N = noise_sigma(trial.force_handle_N)
-    p.quantum_deg = encoder_quantum(raw_th)
+    p.quantum_deg = quantum
+    # angle uncertainty per sample: the quantum at rest, the crossing-time uncertainty (one
+    # sample of motion, at most the quantum) where dequantise interpolated
+    vdeg = np.abs(v_mm) / (math.radians(1.0) * chain.L3_mm)
+    p.quantum_eff_deg = np.where(moving[idx], np.minimum(quantum, vdeg * dt), quantum)
     g, fe = _add_baseline(p, surrogate, chain)
     _add_labels(p, g, fe, surrogate, chain)
     return p

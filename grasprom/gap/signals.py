@@ -18,6 +18,44 @@ def noise_sigma(x: FloatArray) -> float:
     return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
 
 
+DEQUANTISE_MAX_GAP_S = 0.1
+"""Longest time (s) between two counts of the same direction over which :func:`dequantise`
+interpolates (longer: the handle is taken to rest in the level)."""
+
+
+def dequantise(t: FloatArray, theta: FloatArray) -> tuple[FloatArray, np.ndarray]:
+    """The angle behind a quantised (encoder) reading while it moves, at the sample times.
+
+    A count changes when the true angle crosses the boundary between two levels, so at each
+    change the true angle is known: the mid-level ``(theta[i-1] + theta[i]) / 2``, at about the
+    middle of the sample interval. Between two crossings in the same direction less than
+    :data:`DEQUANTISE_MAX_GAP_S` apart the handle moves through the level and the angle is
+    interpolated linearly between them (error a small fraction of the quantum instead of a
+    staircase whose steps the tissue slope turns into force steps); elsewhere (at rest, at a
+    reversal, at the ends) the reading is kept: the true angle is anywhere in the level, whose
+    centre is the unbiased estimate. A reading without quantisation passes unchanged.
+
+    Returns the angle and the mask of the interpolated samples.
+    """
+    th = np.asarray(theta, dtype=float)
+    out = th.copy()
+    moving = np.zeros(th.size, dtype=bool)
+    ch = np.flatnonzero(np.diff(th) != 0.0) + 1  # first sample of each new level
+    if ch.size < 2:
+        return out, moving
+    kt = 0.5 * (t[ch - 1] + t[ch])
+    kv = 0.5 * (th[ch - 1] + th[ch])
+    step = np.sign(th[ch] - th[ch - 1])
+    for k in range(ch.size - 1):
+        if step[k] != step[k + 1] or kt[k + 1] - kt[k] > DEQUANTISE_MAX_GAP_S:
+            continue
+        seg = slice(ch[k], ch[k + 1])
+        w = (t[seg] - kt[k]) / (kt[k + 1] - kt[k])
+        out[seg] = kv[k] + w * (kv[k + 1] - kv[k])
+        moving[seg] = True
+    return out, moving
+
+
 def encoder_quantum(theta: FloatArray) -> float:
     """Smallest non-zero step of a quantised channel (its units; 0 when it never moves)."""
     d = np.abs(np.diff(theta))

@@ -165,3 +165,26 @@ def test_calibrated_confidence_is_monotone_capped_and_only_for_explained():
     assert calibrated(v("explained", 0.9), 4).confidence_raw == 0.9
     assert calibrated(v("explained", 0.9), 1).confidence == 0.3  # one trial: capped
     assert calibrated(v("unexplained", 0.9), 4).confidence == 0.9
+
+
+def test_dequantise_recovers_the_angle_between_encoder_counts():
+    """Issue 15 (coarse encoders): a 0.1 deg staircase of a moving sine is turned back into the
+    angle with an error far below the quantum's q / sqrt(12); at rest the level is kept (the
+    unbiased estimate); an unquantised reading passes almost unchanged."""
+    from grasprom.gap.signals import dequantise
+
+    t = np.arange(0.0, 2.0, 1e-3)
+    true = 11.0 + 5.0 * np.sin(2 * np.pi * 0.5 * t)
+    q = 0.1
+    stair = np.round(true / q) * q
+    est, moving = dequantise(t, stair)
+    m = moving & (np.abs(np.gradient(true, t)) > 2.0)  # moving at > 2 deg/s
+    err_stair = np.sqrt(np.mean((stair[m] - true[m]) ** 2))
+    err_est = np.sqrt(np.mean((est[m] - true[m]) ** 2))
+    assert err_stair == pytest.approx(q / np.sqrt(12), rel=0.15)
+    assert err_est < 0.2 * err_stair and m.mean() > 0.5
+    rest = np.r_[stair[:500], np.full(500, stair[499])]  # a hold after motion
+    est_r, mov_r = dequantise(t[:1000], rest)
+    assert np.all(est_r[520:] == stair[499]) and not mov_r[520:].any()
+    fine, mov_f = dequantise(t, true)
+    assert np.max(np.abs(fine - true)) < 1e-4
