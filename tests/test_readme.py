@@ -126,3 +126,33 @@ def test_readme_commands_in_fresh_venv(tmp_path):
     res = _run("python -m pytest -q --collect-only -p no:cacheprovider", repo, env, timeout=300)
     m = re.search(r"(\d+) tests? collected", res.stdout)
     assert m and int(m.group(1)) > 100, res.stdout[-2000:]
+
+
+def test_every_grasprom_line_of_the_readme_parses():
+    """Issue 16: quickstart lines could not be pasted (``[--flag]``, ``...``). Every
+    ``grasprom ...`` line of README's bash blocks (comments stripped, continuations joined)
+    parses with the live argument parsers, and no block line carries ``[--`` placeholders."""
+    import shlex
+
+    from grasprom.cli import _build_parser, _diagnose_parser, _synth_parser
+
+    bad = []
+    for block in re.findall(r"```bash\n(.*?)```", README.read_text(), flags=re.S):
+        text = re.sub(r"\\\n\s*", " ", block)
+        for line in text.splitlines():
+            code = line.split(" #")[0].strip() if not line.lstrip().startswith("#") else ""
+            if "[--" in code:
+                bad.append(f"placeholder: {code}")
+            for part in code.split("&&"):
+                words = shlex.split(part.strip())
+                if len(words) < 2 or words[0] != "grasprom" or words[1] in ("--help", "-h"):
+                    continue
+                parser = {"diagnose": _diagnose_parser, "synth": _synth_parser}.get(words[1])
+                try:
+                    if parser is not None:
+                        parser().parse_args(words[2:])
+                    else:
+                        _build_parser().parse_args(words[1:])
+                except SystemExit:
+                    bad.append(f"does not parse: {part.strip()}")
+    assert not bad, bad
