@@ -398,8 +398,7 @@ def write_report(res: BuildResult, opts: BuildOptions) -> Path:
     prov = provenance(res, opts)
     parts = [
         *_head_section(res, opts),
-        *_stages_section(res),
-        *_artefacts_section(res),
+        *_headline_section(res),
         *_surrogate_section(res),
         *_chain_section(res),
         *_tuning_section(res),
@@ -407,6 +406,8 @@ def write_report(res: BuildResult, opts: BuildOptions) -> Path:
         *_cosim_section(res),
         *_arduino_section(res),
         *_notes_section(res),
+        *_stages_section(res),
+        *_artefacts_section(res),
         "<h2>Provenance</h2><pre>" + html.escape(json.dumps(prov, indent=2)) + "</pre>",
         "</body></html>",
     ]
@@ -445,31 +446,57 @@ def write_build_json(res: BuildResult, prov: dict[str, Any]) -> Path:
 def summary(res: BuildResult) -> str:
     """One paragraph on a finished build: artefacts and headline figures."""
     lines = [f"grasprom build: {res.total_s:.1f} s -> {res.out_dir}"]
+    lines += [f"  {x}" for x in headline(res)]
+    for key in ("surrogate", "controller", "fmu2", "fmu3", "arduino", "report"):
+        if key in res.files:
+            lines.append(f"  {key:10s} {res.files[key]}")
+    return "\n".join(lines)
+
+
+def _headline_section(res: BuildResult) -> list[str]:
+    """The results first: :func:`headline` as a list at the top of the report."""
+    items = headline(res)
+    if not items:
+        return []
+    return ["<h2>Results at a glance</h2>" + _list([html.escape(x) for x in items])]
+
+
+def headline(res: BuildResult) -> list[str]:
+    """The headline figures of a build, one sentence each (units stated): surrogate error,
+    controller and passivity, closed loop, augmentation, Arduino budget, co-simulation."""
+    lines: list[str] = []
+    if res.surrogate is not None:
+        err = res.surrogate.errors.get("holdout", {}).get("schemes", {}).get(res.surrogate.scheme)
+        if err:
+            h = err["haptic"]["all"]
+            f_max, g_max = _fmt(h["force_max_pct"], ".2f"), _fmt(h["gap_max_mm"], ".3f")
+            lines.append(f"surrogate: held-out haptic force error {f_max} % of the force scale "
+                         f"(max), gap error {g_max} mm (max, where steeper)")  # fmt: skip
     if res.tuning is not None:
         sm = res.tuning.summary
         c = sm["chosen"]
         bound = (f"K_lim = {c['stiffness_limit_Nm_per_rad']:g} N m/rad (clipped)"
                  if c.get("rendering") == "clipped"
                  else f"k_c = {c['coupling_stiffness_N_per_mm']:g} N/mm")  # fmt: skip
-        lines.append(f"  controller: {bound}, passivity margin {sm['passivity_margin']:.3g}")
+        lines.append(f"controller: {bound}, passivity margin {sm['passivity_margin']:.3g}")
         om = sm.get("operating_margins")
         if om:
-            lines.append(f"  closed loop with the hand: worst damping ratio "
+            lines.append(f"closed loop with the hand: worst damping ratio "
                          f"{om['worst']['damping_ratio_min']:.3g} (target "
                          f"{om['target']['damping_ratio_min']:g}: "
                          f"{'met' if om['meets_target'] else 'NOT met'})")  # fmt: skip
     if res.augmentation is not None:
-        lines.append(f"  augmented model {res.augmentation['file']}: rendered "
+        lines.append(f"augmented model {res.augmentation['file']}: rendered "
                      f"{', '.join(res.augmentation['rendered']) or 'none'}")  # fmt: skip
     if res.arduino is not None:
         a = res.arduino
-        lines.append(f"  arduino: flash {_fmt(a.flash_B, 'd')} B, RAM {_fmt(a.ram_B, 'd')} B, "
+        lines.append(f"arduino: flash {_fmt(a.flash_B, 'd')} B, RAM {_fmt(a.ram_B, 'd')} B, "
                      f"cycles {_fmt(a.cycles_max, 'd')}, handle-force error "
                      f"{_fmt(a.error_handle_pct_rendered, '.3f')} % of the rendered "
                      "range")  # fmt: skip
     if res.cosim is not None:
         lines.append(
-            f"  co-simulation: max jaw force {res.cosim.col('force_jaw_N').max():.2f} N,"
+            f"co-simulation: max jaw force {res.cosim.col('force_jaw_N').max():.2f} N,"
             f" FMU vs Python torque {res.cosim.max_torque_diff_Nm:.1e} N m"
             + (
                 f", handle-force overshoot {100 * res.cosim.settling['overshoot']:.0f} %"
@@ -477,7 +504,4 @@ def summary(res: BuildResult) -> str:
                 else ""
             )
         )
-    for key in ("surrogate", "controller", "fmu2", "fmu3", "arduino", "report"):
-        if key in res.files:
-            lines.append(f"  {key:10s} {res.files[key]}")
-    return "\n".join(lines)
+    return lines

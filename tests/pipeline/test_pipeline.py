@@ -141,6 +141,14 @@ def test_report_names_and_embeds_figures(built):
                     "fe_hash", "git_revision", "Transparency", "damping ratio",
                     "rate needed (Hz)"):  # fmt: skip
         assert section in html, section
+    # issue 16: the results lead; stage times and artefact tables come after them
+    first = html.index("Results at a glance")
+    assert first < html.index("FE data and surrogate") < html.index("<h2>Stages</h2>")
+    assert html.index("<h2>Artefacts</h2>") > html.index("Arduino budget")
+    glance = html[first : html.index("<h2>", first + 10)]
+    for needle in ("held-out haptic force error", "passivity margin", "handle-force error",
+                   "co-simulation: max jaw force"):  # fmt: skip
+        assert needle in glance, needle
     meta = json.loads((out / "build.json").read_text())
     prov = meta["provenance"]
     assert prov["command_line"][:2] == ["grasprom", "build"] and "--fast" in prov["command_line"]
