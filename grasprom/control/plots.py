@@ -15,6 +15,7 @@ import numpy as np
 from grasprom.control.passivity import zwidth_boundary
 from grasprom.control.stiffness import virtual_damping_Nms_per_rad
 from grasprom.control.tuning import TuningResult
+from grasprom.fe.materials import material_label
 
 if TYPE_CHECKING:  # matplotlib is imported when plotting
     from matplotlib.figure import Figure
@@ -120,13 +121,14 @@ def _plot_stiffness(result: TuningResult, path: Path) -> Path:
                 np.maximum(o.K_Nm_per_rad, 1e-3),
                 color=col,
                 lw=1.2,
-                label=f"t={o.thickness_mm:g}" if n_ in (0, len(ops) - 1) else None,
+                label=f"t = {o.thickness_mm:g} mm" if n_ in (0, len(ops) - 1) else None,
             )
             ax.semilogy(
                 o.theta_deg, np.maximum(o.K_raw_Nm_per_rad, 1e-3), color=col, lw=0.6, ls=":"
             )
         ax.axhline(k_pass, color="C3", lw=1.5, label="passive bound")
-        ax.set_title(f"{m}: rendered K (solid), raw tissue (dotted)", fontsize=9)
+        ax.set_title(f"{material_label(m)}: rendered K (solid), raw tissue (dotted)",
+                     fontsize=9)  # fmt: skip
         ax.set_xlabel(r"handle angle $\theta$ (deg)")
         ax.set_ylabel("K at handle pivot (N m/rad)")
         ax.grid(True, which="both", alpha=0.3)
@@ -185,11 +187,12 @@ def _plot_bode(result: TuningResult, path: Path) -> Path:
     ax1.loglog(f, np.abs(Z), label="sampled (ZOH, delay, filter)")
     ax1.loglog(f, np.abs(Zc), "--", label="ideal K/s + B")
     ax1.set_ylabel("|Z| (N m s/rad)")
-    ax1.set_title(f"Rendered impedance at K = {kmax:.3g} N m/rad, B = {B:.3g}", fontsize=10)
+    ax1.set_title(f"Rendered impedance at K = {kmax:.3g} N m/rad, B = {B:.3g} N m s/rad",
+                  fontsize=10)  # fmt: skip
     ax1.legend(fontsize=7)
     ax1.grid(True, which="both", alpha=0.3)
-    ax2.semilogx(f, np.degrees(np.angle(Z)))
-    ax2.semilogx(f, np.degrees(np.angle(Zc)), "--")
+    ax2.semilogx(f, np.degrees(np.unwrap(np.angle(Z))))  # unwrapped: no jump at +-180 deg
+    ax2.semilogx(f, np.degrees(np.unwrap(np.angle(Zc))), "--")
     ax2.axhline(-90, color="0.6", lw=0.8)
     ax2.axhline(90, color="0.6", lw=0.8)
     ax2.set_ylabel("phase (deg)")

@@ -40,6 +40,15 @@ import numpy as np
 
 MATERIAL_NAMES = ("mr", "nh", "le")
 
+MATERIAL_LABELS = {"mr": "Mooney-Rivlin", "nh": "neo-Hookean", "le": "linear elastic"}
+"""Long name of each material key (figure legends and titles)."""
+
+
+def material_label(key: str) -> str:
+    """``"mr (Mooney-Rivlin)"``: the key with its long name, for figures."""
+    return f"{key} ({MATERIAL_LABELS[key]})" if key in MATERIAL_LABELS else key
+
+
 #: seed 003 constants
 C10_SEED_MPA = 0.085
 C01_SEED_MPA = 0.0565

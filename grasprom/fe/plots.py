@@ -10,6 +10,7 @@ import os
 from pathlib import Path
 
 from grasprom.fe import datafiles as df
+from grasprom.fe.materials import material_label
 
 
 def plot_sweep(
@@ -62,12 +63,13 @@ def plot_sweep(
             keep = y > 0 if logy else slice(None)
             top.plot(x[keep], y[keep], style, color=c, lw=1.2, label=f"t = {t:.2f} mm")
             zoom.plot(x, y, style, color=c, lw=1.2)
-        top.set_title(f"material: {mat}")
+        top.set_title(f"material: {material_label(mat)}")
         if logy:
             top.set_yscale("log")
         zoom.set_ylim(0.0, haptic_force_N)
         zoom.set_xlim(2.2 * tmax + 1.0 if thicknesses else 6.0, 1.0)
-        zoom.set_title(f"{mat}: haptic range, walls meeting at gap ~ 2t", fontsize=9)
+        zoom.set_title(f"{mat}: haptic range, walls meeting at gap ~ 2t (gap closing ->)",
+                       fontsize=9)  # fmt: skip
         for ax in (top, zoom):
             ax.set_xlabel("jaw gap (mm)")
             ax.grid(True, alpha=0.3)
@@ -75,7 +77,9 @@ def plot_sweep(
     axes[0][0].set_ylabel("jaw force (N)")
     axes[1][0].set_ylabel("jaw force (N), linear")
     if mats:
-        axes[0][-1].legend(fontsize=7, ncol=2, title="dashed: partial", title_fontsize=7)
+        partial = len(data) and (data["status"] != "complete").any()
+        axes[0][-1].legend(fontsize=7, ncol=2, title="dashed: partial" if partial else None,
+                           title_fontsize=7)  # fmt: skip
     fig.suptitle(f"Force vs gap: {Path(directory)}")
     fig.tight_layout()
     out = Path(path)

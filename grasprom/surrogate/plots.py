@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from grasprom.fe.materials import material_label
 from grasprom.surrogate.fedata import FECase, read_fe_cases
 from grasprom.surrogate.table import Surrogate
 from grasprom.surrogate.validation import fe_point_stiffness
@@ -121,7 +122,8 @@ def _label_column(column: Sequence[Any], s: Surrogate, m: str) -> None:
     ax = column[0]
     ax.set_yscale("log")
     ax.set_xscale("log")
-    ax.set_title(f"{m} ({s.scheme}): force, lines = surrogate, o = FE")
+    ax.set_title(f"{material_label(m)} ({s.scheme}): force, lines = surrogate, o = FE",
+                 fontsize=9)  # fmt: skip
     ax.set_xlabel("jaw gap (mm)")
     ax.set_ylabel("force (N)")
     ax.legend(fontsize=6, ncol=2, title="thickness", title_fontsize=6)
