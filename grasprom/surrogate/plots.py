@@ -94,10 +94,12 @@ def _draw_surrogate_curves(
             ]
         )
         g.sort()
-        f = s.force(g, t, m)
+        f, extrap = s.force(g, t, m, return_flag=True)
         k = s.stiffness(g, t, m)
-        keep = f > 0
+        keep = (f > 0) & ~extrap
         column[0].plot(g[keep], f[keep], "-", color=col_t, lw=1.0, label=f"{t:.2f} mm")
+        beyond = (f > 0) & extrap  # below the FE data (closed height or force cap reached)
+        column[0].plot(g[beyond], f[beyond], "--", color=col_t, lw=0.6)
         column[1].plot(g - 2 * t, f, "-", color=col_t, lw=1.0)
         column[2].plot(g[k > 0], k[k > 0], "-", color=col_t, lw=1.0)
 
@@ -108,7 +110,7 @@ def _draw_fe_points(
     """FE force, force near wall contact and point stiffness of ``cases`` (open circles)."""
     for c in cases:
         col_t = _thickness_colour(cmap, c.thickness_mm, lo, hi)
-        keep = c.force_N > 0
+        keep = c.force_N > 1e-6  # the numerical zero before first touch is not drawn
         column[0].plot(c.gap_mm[keep], c.force_N[keep], "o", ms=2.5, mfc="none", color=col_t)
         column[1].plot(
             c.gap_mm - 2 * c.thickness_mm, c.force_N, "o", ms=2.5, mfc="none", color=col_t
@@ -122,8 +124,12 @@ def _label_column(column: Sequence[Any], s: Surrogate, m: str) -> None:
     ax = column[0]
     ax.set_yscale("log")
     ax.set_xscale("log")
-    ax.set_title(f"{material_label(m)} ({s.scheme}): force, lines = surrogate, o = FE",
-                 fontsize=9)  # fmt: skip
+    from matplotlib.ticker import NullFormatter
+
+    ax.set_title(f"{material_label(m)}, {s.scheme} scheme", fontsize=9)
+    ax.text(0.02, 0.03, "lines: surrogate (dashed: extrapolated past the FE data)\no: FE",
+            transform=ax.transAxes, fontsize=6, va="bottom")  # fmt: skip
+    ax.xaxis.set_minor_formatter(NullFormatter())
     ax.set_xlabel("jaw gap (mm)")
     ax.set_ylabel("force (N)")
     ax.legend(fontsize=6, ncol=2, title="thickness", title_fontsize=6)
@@ -137,6 +143,7 @@ def _label_column(column: Sequence[Any], s: Surrogate, m: str) -> None:
     ax.set_yscale("log")
     ax.set_xscale("log")
     ax.set_title("stiffness -dF/dgap (FE: larger adjacent secant)")
+    ax.xaxis.set_minor_formatter(NullFormatter())
     ax.set_xlabel("jaw gap (mm)")
     ax.set_ylabel("stiffness (N/mm)")
     for a in column:
