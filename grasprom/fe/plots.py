@@ -43,6 +43,7 @@ def plot_sweep(
     """
     import matplotlib
     from matplotlib.figure import Figure
+    from matplotlib.ticker import NullFormatter
 
     data = df.load_sweep(directory)
     mats = sorted(data["material"].unique()) if len(data) else []
@@ -60,20 +61,20 @@ def plot_sweep(
             y = case["force_N"].to_numpy(float)
             c = cmap(0.0 if tmax == tmin else (t - tmin) / (tmax - tmin))
             style = "-" if (case["status"] == "complete").all() else "--"
-            keep = y > 0 if logy else slice(None)
+            keep = y > 1e-6 if logy else slice(None)  # no numerical zero at first touch
             top.plot(x[keep], y[keep], style, color=c, lw=1.2, label=f"t = {t:.2f} mm")
             zoom.plot(x, y, style, color=c, lw=1.2)
         top.set_title(f"material: {material_label(mat)}")
         if logy:
             top.set_yscale("log")
         zoom.set_ylim(0.0, haptic_force_N)
-        zoom.set_xlim(2.2 * tmax + 1.0 if thicknesses else 6.0, 1.0)
-        zoom.set_title(f"{mat}: haptic range, walls meeting at gap ~ 2t (gap closing ->)",
-                       fontsize=9)  # fmt: skip
+        zoom.set_xlim(1.0, 2.2 * tmax + 1.0 if thicknesses else 6.0)
+        zoom.set_title(f"{mat}: haptic range, walls meeting at gap ~ 2t", fontsize=9)
         for ax in (top, zoom):
             ax.set_xlabel("jaw gap (mm)")
             ax.grid(True, alpha=0.3)
-        top.invert_xaxis()
+        top.set_xscale("log")  # as the surrogate figure: gap increasing to the right
+        top.xaxis.set_minor_formatter(NullFormatter())
     axes[0][0].set_ylabel("jaw force (N)")
     axes[1][0].set_ylabel("jaw force (N), linear")
     if mats:
