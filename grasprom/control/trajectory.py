@@ -29,6 +29,7 @@ __all__ = [
     "TRAJECTORY_COLUMNS",
     "grasp_trajectory",
     "max_simulation_steps",
+    "minimum_jerk",
     "simulate",
     "validate_trajectory",
 ]
@@ -64,6 +65,16 @@ SIMULATION_COLUMNS = (
 tissue stiffness ``-dF/dgap`` at the kinematic gap (N/mm, scaled like the force) and the
 rendering's bound on the jaw stiffness at the chain angle
 (:func:`~grasprom.control.field.jaw_stiffness_limit_N_per_mm`, N/mm)."""
+
+
+def minimum_jerk(s):
+    """Minimum-jerk profile (Flash & Hogan 1985) and its slope at the phase ``s`` (1, 1/1).
+
+    ``10 s^3 - 15 s^4 + 6 s^5`` on ``0 <= s <= 1``; 0 before, 1 after, slope 0 outside.
+    ``s`` is a float (floats returned: the co-simulation's per-step path) or an array.
+    """
+    s = min(max(float(s), 0.0), 1.0) if np.ndim(s) == 0 else np.clip(s, 0.0, 1.0)
+    return s**3 * (10.0 - 15.0 * s + 6.0 * s**2), 30.0 * s * s * (1.0 - s) ** 2
 
 
 MS_SUSPECT_STEP_S = 0.5

@@ -338,6 +338,7 @@ def demo_input(params: ControllerParams, surrogate: Surrogate | None = None,
     import numpy as np
 
     from grasprom.chain import kinematics as kin
+    from grasprom.control.trajectory import minimum_jerk
 
     step = params.sample_time_s if step_s is None else step_s
     if not (math.isfinite(duration_s) and duration_s > 0):
@@ -349,19 +350,11 @@ def demo_input(params: ControllerParams, surrogate: Surrogate | None = None,
     theta_open = math.radians(kin.theta_range_deg(chain)[1])
     t = np.round(np.arange(round(duration_s / step) + 1) * step, 12)  # 0.35, not 0.350...03
     edges = np.cumsum([0] + [w for _, w in DEMO_PHASES]) / 16.0 * duration_s
-    closing = _min_jerk((t - edges[1]) / (edges[2] - edges[1]))
-    opening = _min_jerk((t - edges[3]) / (edges[4] - edges[3]))
+    closing = minimum_jerk((t - edges[1]) / (edges[2] - edges[1]))[0]
+    opening = minimum_jerk((t - edges[3]) / (edges[4] - edges[3]))[0]
     closed_share = np.where(t < edges[3], closing, 1.0 - opening)
     theta = theta_open + (theta_hold - theta_open) * closed_share
     return t, theta
-
-
-def _min_jerk(s):
-    """Minimum-jerk blend 10 s^3 - 15 s^4 + 6 s^5 of s clipped to [0, 1]."""
-    import numpy as np
-
-    s = np.clip(s, 0.0, 1.0)
-    return s**3 * (10.0 - 15.0 * s + 6.0 * s**2)
 
 
 def write_demo_input(path, params: ControllerParams, surrogate: Surrogate | None = None,

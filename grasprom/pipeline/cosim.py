@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from grasprom.control.trajectory import minimum_jerk
 from grasprom.pipeline.result import CosimResult
 
 if TYPE_CHECKING:
@@ -153,18 +154,6 @@ class Handle:
                 theta = min(max(theta, th_lo), th_hi)
                 omega = 0.0
         return theta, omega, f_hand
-
-
-def minimum_jerk(s: float) -> tuple[float, float]:
-    """Minimum-jerk profile (Flash & Hogan 1985) and its slope at the phase ``s`` (1, 1/1).
-
-    ``10 s^3 - 15 s^4 + 6 s^5`` on ``0 <= s <= 1``; 0 before, 1 after, slope 0 outside.
-    """
-    if s <= 0.0:
-        return 0.0, 0.0
-    if s >= 1.0:
-        return 1.0, 0.0
-    return s**3 * (10.0 - 15.0 * s + 6.0 * s * s), 30.0 * s * s * (1.0 - s) ** 2
 
 
 @dataclass(frozen=True)

@@ -38,7 +38,7 @@ def test_handle_stops_at_the_closed_end():
 
 
 def test_minimum_jerk_profile():
-    from grasprom.pipeline.cosim import minimum_jerk
+    from grasprom.control.trajectory import minimum_jerk
 
     assert minimum_jerk(-1.0) == (0.0, 0.0) and minimum_jerk(2.0) == (1.0, 0.0)
     assert minimum_jerk(0.5) == (0.5, 1.875)  # 10/8 - 15/16 + 6/32; slope 30/16
