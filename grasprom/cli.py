@@ -914,8 +914,9 @@ def _build_inputs_error(args: argparse.Namespace, fe_dir: Path) -> str | None:
     if not fe_dir.is_dir():
         return f"--fe {args.fe}: FE sweep directory {fe_dir} does not exist"
     from grasprom.fe import MATERIAL_NAMES
+    from grasprom.fe.datafiles import known_stems, parse_stem
 
-    found = {p.name.split("_t")[0] for p in fe_dir.glob("*_t*.csv")}
+    found = {ps[0] for ps in map(parse_stem, known_stems(fe_dir)) if ps is not None}
     missing = [m for m in MATERIAL_NAMES if m not in found]
     if found and missing:
         return (
