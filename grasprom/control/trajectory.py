@@ -25,6 +25,7 @@ if TYPE_CHECKING:  # pandas is imported when used: ``import grasprom.control`` s
 __all__ = [
     "SIMULATION_COLUMNS",
     "MAX_SIMULATION_STEPS",
+    "check_theta_degrees",
     "check_time_seconds",
     "TRAJECTORY_COLUMNS",
     "grasp_trajectory",
@@ -81,6 +82,21 @@ MS_SUSPECT_STEP_S = 0.5
 """Median time step (s) from which a long record's ``time_s`` is taken for milliseconds."""
 MS_SUSPECT_SPAN_S = 100.0
 """Span (s) from which a record with :data:`MS_SUSPECT_STEP_S` steps is taken for ms."""
+
+
+def check_theta_degrees(th: np.ndarray, source: str) -> None:
+    """Refuse a moving handle-angle column that stays within 0.4 deg: radians, not degrees.
+
+    Raises
+    ------
+    ValueError
+        Naming ``source`` and the column ``theta_deg``.
+    """
+    if np.ptp(th) > 0 and np.abs(th).max() <= 0.4:
+        raise ValueError(
+            f"{source}: column 'theta_deg' stays within 0.4 deg -- is it in radians? "
+            "(the column must be in degrees: multiply by 180/pi)"
+        )
 
 
 def check_time_seconds(t: np.ndarray, source: str, column: str = "time_s") -> None:
@@ -147,11 +163,7 @@ def validate_trajectory(
             f"{source}: column 'theta_deg', row {int(bad[0]) + 1}: {th[bad[0]]!r} deg outside "
             f"the chain's range [{lo:g}, {hi:g}] deg"
         )
-    if np.ptp(th) > 0 and np.abs(th).max() <= 0.4:
-        raise ValueError(
-            f"{source}: column 'theta_deg' stays within 0.4 deg -- is it in radians? "
-            "(the column must be in degrees: multiply by 180/pi)"
-        )
+    check_theta_degrees(th, source)
     check_time_seconds(t, source)
     _check_steps(t, params, source)
     return t, th

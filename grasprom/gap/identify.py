@@ -29,6 +29,7 @@ samples.  Units: s, rad, N m, kg m^2.
 from __future__ import annotations
 
 import hashlib
+import io
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
@@ -147,8 +148,8 @@ def load_device_trial(path: str | Path) -> DeviceTrial:
 
     p = Path(path)
     try:
-        raw = p.read_bytes()
-        df = pd.read_csv(p)
+        raw = p.read_bytes()  # read once: the table and its sha256
+        df = pd.read_csv(io.BytesIO(raw))
     except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
         raise IdentificationError(f"{p}: cannot read the trial ({exc})") from None
     missing = [c for c in IDENTIFY_COLUMNS if c not in df.columns]
@@ -171,7 +172,7 @@ def load_device_trial(path: str | Path) -> DeviceTrial:
 
 def _check_trial(p: Path, cols: dict[str, np.ndarray]) -> None:
     """Time increasing and in seconds, angle in degrees, enough rows."""
-    from grasprom.control.trajectory import check_time_seconds
+    from grasprom.control.trajectory import check_theta_degrees, check_time_seconds
 
     t, th = cols["time_s"], cols["theta_deg"]
     if t.size < 50:
@@ -182,11 +183,9 @@ def _check_trial(p: Path, cols: dict[str, np.ndarray]) -> None:
                                   "increase strictly")  # fmt: skip
     try:
         check_time_seconds(t, str(p))
+        check_theta_degrees(th, str(p))
     except ValueError as exc:
         raise IdentificationError(str(exc)) from None
-    if np.ptp(th) > 0 and np.abs(th).max() <= 0.4:
-        raise IdentificationError(f"{p}: column 'theta_deg' stays within 0.4 deg -- radians? "
-                                  "(the column must be in degrees)")  # fmt: skip
 
 
 def _filtered(tr: DeviceTrial, cutoff_hz: float):
