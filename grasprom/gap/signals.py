@@ -46,13 +46,15 @@ def dequantise(t: FloatArray, theta: FloatArray) -> tuple[FloatArray, np.ndarray
     kt = 0.5 * (t[ch - 1] + t[ch])
     kv = 0.5 * (th[ch - 1] + th[ch])
     step = np.sign(th[ch] - th[ch - 1])
-    for k in range(ch.size - 1):
-        if step[k] != step[k + 1] or kt[k + 1] - kt[k] > DEQUANTISE_MAX_GAP_S:
-            continue
-        seg = slice(ch[k], ch[k + 1])
-        w = (t[seg] - kt[k]) / (kt[k + 1] - kt[k])
-        out[seg] = kv[k] + w * (kv[k + 1] - kv[k])
-        moving[seg] = True
+    ok = (step[:-1] == step[1:]) & (kt[1:] - kt[:-1] <= DEQUANTISE_MAX_GAP_S)
+    # sample i lies in the level that starts at crossing k = (crossings up to i) - 1
+    k = np.searchsorted(ch, np.arange(th.size), side="right") - 1
+    inside = (k >= 0) & (k < ch.size - 1)
+    moving[inside] = ok[k[inside]]
+    i = np.flatnonzero(moving)
+    kk = k[i]
+    w = (t[i] - kt[kk]) / (kt[kk + 1] - kt[kk])
+    out[i] = kv[kk] + w * (kv[kk + 1] - kv[kk])
     return out, moving
 
 
