@@ -132,13 +132,19 @@ def _contact_trials(
     return preps, warn_list
 
 
+def _measured_block(gap: BaselineGap) -> str | None:
+    """The block of the chain the measured channels put the gap in (None: not measured)."""
+    bb = gap.summary["by_block"]
+    return None if bb is None else max(BLOCKS, key=lambda k: bb[k]["share"])
+
+
 def _where(gap: BaselineGap, label: str, chosen: tuple[str, ...]) -> dict[str, str]:
     """The ``where`` section: the phase and the block of the chain holding the gap."""
     baseline = gap.summary
     where_phase = max(PHASES, key=lambda k: baseline["by_phase"][k]["share"])
-    if baseline["by_block"] is not None:
-        bb = baseline["by_block"]
-        block = max(BLOCKS, key=lambda k: bb[k]["share"])
+    measured = _measured_block(gap)
+    if measured is not None:
+        block = measured
         block_source = "measured channels (force_jaw_N / gap_mm)" + (
             f"; {gap.block_how}" if gap.block_how else ""
         )
@@ -262,9 +268,8 @@ def diagnose(
     gap = baseline_gap(preps, surrogate, chain)
     search = search_candidates(preps, cands, gap, surrogate, chain, try_pairs)
     verdict = judge(gap, search, len(preps), [p.sigma for p in preps])
-    measured = _where(gap, "none", search.chosen)["block"]
     blocks = frozenset(EFFECTS[e].block for e in search.chosen)
-    verdict = checked_verdict(verdict, search, None if measured == "unknown" else measured, blocks)
+    verdict = checked_verdict(verdict, search, _measured_block(gap), blocks)
     verdict = calibrated(verdict, len(preps))
     chosen_fit = fit_effects(preps, search.chosen, surrogate, chain)
     reasons = screen_trials(preps)

@@ -38,15 +38,18 @@ def worse_phases(
     sig = np.concatenate(sigmas)
     r0 = np.concatenate(gap.residuals)
     r1 = np.concatenate(search.cv[search.chosen].residuals)
-    sys0 = {k: float(np.sum((r0[lab == i] / sig[lab == i]) ** 2)) - np.sum(lab == i)
-            for i, k in enumerate(PHASES)}  # fmt: skip
-    sys1 = {k: float(np.sum((r1[lab == i] / sig[lab == i]) ** 2)) - np.sum(lab == i)
-            for i, k in enumerate(PHASES)}  # fmt: skip
-    total = sum(max(v, 0.0) for v in sys0.values())
+
+    def systematic(r: np.ndarray) -> np.ndarray:
+        """Weighted chi2 less the sample count, per phase."""
+        return np.array([np.sum((r[lab == i] / sig[lab == i]) ** 2) - np.sum(lab == i)
+                         for i in range(len(PHASES))])  # fmt: skip
+
+    sys0, sys1 = systematic(r0), systematic(r1)
+    total = float(np.sum(np.maximum(sys0, 0.0)))
     out = []
     for i, k in enumerate(PHASES):
-        share = max(sys0[k], 0.0) / total if total > 0 else 0.0
-        if share >= PHASE_SHARE_SIGNIFICANT and sys1[k] > PHASE_WORSE * sys0[k]:
+        share = max(sys0[i], 0.0) / total if total > 0 else 0.0
+        if share >= PHASE_SHARE_SIGNIFICANT and sys1[i] > PHASE_WORSE * sys0[i]:
             m = lab == i
             out.append(
                 f"{k} ({100 * share:.0f} % of the gap): held-out RMS "
