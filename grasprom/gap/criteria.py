@@ -15,5 +15,5 @@ CONFIDENCE_PLATT = (-0.0572, 2.889)
 """Calibration of the confidence of an ``explained`` verdict: ``1 / (1 + exp(-(a + b c)))`` of
 the raw confidence ``c`` (Platt scaling), ``(a, b)`` fitted by maximum likelihood on the exact
 truth-set accuracy of the 72 ``explained`` verdicts of ``benchmarks/bench_diagnosis.py --seed
-2024`` (expected calibration error 24 points raw, 1.6 after) and checked on ``--seed 2025``
-(see the README)."""
+2024`` (expected calibration error 24 points raw, 1.6 after, when fitted) and checked on
+``--seed 2025`` (see the README for the figures at this version)."""
