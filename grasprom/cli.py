@@ -212,8 +212,8 @@ def _add_model_options(s: argparse.ArgumentParser) -> None:
         "--contact",
         choices=("stick", "frictionless", "coulomb"),
         default=None,
-        help="jaw contact: stick (no sliding, seed 003; 3d default) or frictionless (2d: the "
-        "only one); coulomb is not implemented yet",
+        help="jaw contact: stick (no sliding, seed 003; 3d default) or frictionless (2d "
+        "default); coulomb is not implemented yet",
     )
     s.add_argument("--friction", type=float, default=None, metavar="MU", help="Coulomb coefficient")
     s.add_argument(
@@ -448,7 +448,7 @@ def _error(cmd: str, msg: object) -> int:
 def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
     from grasprom.fe import CorruptCaseError, SweepInputError, build_grid, default_runner, run_sweep
     from grasprom.fe.grid import check_out_dir
-    from grasprom.fe.grid3d import Model3DOptions, check_options, to_3d
+    from grasprom.fe.grid3d import Model3DOptions, check_options, to_2d, to_3d
 
     opts3d = Model3DOptions(args.contact, args.friction, args.tube_length, args.ends)
     try:
@@ -466,6 +466,8 @@ def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
         if args.model == "3d":
             mesh = {k: v for k, v in (("n_layers", args.n_layers), ("n_circ", args.n_circ)) if v}
             specs = to_3d(specs, opts3d, mesh)
+        else:
+            specs = to_2d(specs, opts3d)
         if args.workers is not None and args.workers < 1:
             raise SweepInputError(f"--workers: must be a positive integer, got {args.workers}")
         check_out_dir(args.out)  # created only once every option is valid

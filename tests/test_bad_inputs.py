@@ -77,7 +77,7 @@ ROWS: list[tuple[str, list[str], tuple[str, str | bytes] | None, str]] = [
     ("sweep-layers-zero", [*SWEEP, "--thickness", "1.4", "--n-layers", "0"], None, "--n-layers"),
     ("sweep-circ-two", [*SWEEP, "--thickness", "1.4", "--n-circ", "2"], None, "--n-circ"),
     ("sweep-model", [*SWEEP, "--thickness", "1.4", "--model", "4d"], None, "--model"),
-    ("sweep-contact-2d", [*SWEEP, "--thickness", "1.4", "--contact", "stick"], None, "--contact"),
+    ("sweep-contact-2d", [*SWEEP, "--thickness", "1.4", "--contact", "coulomb"], None, "--contact"),
     (
         "sweep-friction-alone",
         [*SWEEP, "--thickness", "1.4", "--model", "3d", "--friction", "0.3"],

@@ -22,6 +22,7 @@ __all__ = [
     "MODELS",
     "Model3DOptions",
     "check_options",
+    "to_2d",
     "to_3d",
 ]
 
@@ -88,10 +89,25 @@ def check_options(model: str, opts: Model3DOptions) -> None:
         given = [n for n, v in (("--tube-length", tl), ("--ends", opts.ends)) if v is not None]
         if given:
             raise SweepInputError(f"{', '.join(given)}: only with --model 3d")
-        if opts.contact not in (None, "frictionless"):
-            raise SweepInputError(
-                f"--contact {opts.contact}: the 2D model is frictionless; use --model 3d"
-            )
+
+
+def to_2d(specs: Sequence[Any], opts: Model3DOptions) -> list[Any]:
+    """The 2D cases of a validated grid with the contact law of ``opts`` (if given).
+
+    Parameters
+    ----------
+    specs : sequence of CaseSpec
+        The 2D grid of :func:`grasprom.fe.grid.build_grid`.
+    opts : Model3DOptions
+        Validated by :func:`check_options` for ``--model 2d`` (only ``contact`` may be set).
+
+    Returns
+    -------
+    list of CaseSpec
+    """
+    if opts.contact is None:
+        return list(specs)
+    return [dataclasses.replace(s, contact=opts.contact) for s in specs]
 
 
 def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, int]) -> list[Any]:

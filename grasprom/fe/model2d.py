@@ -5,7 +5,9 @@ Model (seed 003's "CS" cylindrical approximation):
 * cross-section of a tube of outer diameter ``D`` and wall thickness ``t``, plane strain, quarter
   symmetry (``x >= 0, y >= 0``); symmetry ``u_x = 0`` on ``x = 0`` and ``u_y = 0`` on ``y = 0``;
 * a rigid flat jaw ``y = h`` descends from first touch (``h = D/2``) to ``h = closed_gap / 2``;
-  the jaw gap is ``2 h``; frictionless node-to-plane contact with the outer wall;
+  the jaw gap is ``2 h``; node-to-plane contact with the outer wall, ``frictionless`` (default)
+  or ``stick`` (seed 003's "no sliding at the interface": a node that touches the jaw keeps its
+  ``x`` until it lifts off);
 * self-contact of the inner wall with its mirror image is contact with the rigid plane ``y = 0``
   (frictionless), which the inner wall reaches once the walls meet (``gap ~ 2 t``);
 * contact is solved exactly with a primal active set: active nodes get a prescribed normal
@@ -47,7 +49,7 @@ CONTRACT_COLUMNS = (
     "min_J",
 )
 
-#: all columns written, in order
+#: the columns the 2D and 3D models share, in order
 COLUMNS = (
     *CONTRACT_COLUMNS[:-1],
     "mean_pressure_MPa",
@@ -55,6 +57,12 @@ COLUMNS = (
     "min_J",
     "newton_iterations",
 )
+
+#: all columns a 2D case writes, in order: :data:`COLUMNS` and the stick reaction's share
+COLUMNS_2D = (*COLUMNS, "tangential_share")
+
+CONTACTS_2D = ("frictionless", "stick")
+"""Jaw contact laws of the 2D model (:attr:`CaseSpec.contact`)."""
 
 #: "unit, meaning" of every column
 COLUMN_DESCRIPTIONS = {
@@ -68,6 +76,8 @@ COLUMN_DESCRIPTIONS = {
     "inner_contact_width_mm": "mm, width over which the inner walls touch (full width)",
     "min_J": "1, smallest det(F) over all quadrature points (volume ratio)",
     "newton_iterations": "1, Newton iterations of the step (all active-set passes)",
+    "tangential_share": "1, sum of |tangential| / sum of normal nodal jaw reactions (0 if "
+    "frictionless)",
 }
 
 
@@ -165,6 +175,9 @@ class CaseSpec:
     solver : SolverSettings
     nu : float or None
         Poisson ratio override for the material (None: material default 0.49).
+    contact : str
+        Jaw contact law, one of :data:`CONTACTS_2D`: ``"frictionless"`` (default: the shipped
+        2D data set) or ``"stick"`` (no sliding once a node touches the jaw, seed 003).
     """
 
     material: str
@@ -176,6 +189,7 @@ class CaseSpec:
     mesh: MeshSpec = field(default_factory=MeshSpec)
     solver: SolverSettings = field(default_factory=SolverSettings)
     nu: float | None = None
+    contact: str = "frictionless"
 
     def make_material(self) -> Material:
         """The material object of this case."""
@@ -568,6 +582,8 @@ class _State:
     u: np.ndarray
     jaw_active: np.ndarray  # bool over disc.outer_nodes
     floor_active: np.ndarray  # bool over disc.inner_nodes
+    anchor_x: np.ndarray  # x (mm) where each outer node stuck to the jaw (stick contact)
+    stick: bool = False
     f: np.ndarray | None = None
     K: sp.csr_matrix | None = None
 
@@ -580,6 +596,9 @@ def _fixed_and_values(disc, state: _State, h: float):
     jn = disc.outer_nodes[state.jaw_active]
     fixed[2 * jn + 1] = True
     values[2 * jn + 1] = h - disc.X[jn, 1]
+    if state.stick:
+        fixed[2 * jn] = True
+        values[2 * jn] = state.anchor_x[state.jaw_active] - disc.X[jn, 0]
     fnode = disc.inner_nodes[state.floor_active]
     fixed[2 * fnode + 1] = True
     values[2 * fnode + 1] = -disc.X[fnode, 1]
@@ -590,12 +609,13 @@ def _solve_step(disc, material, state: _State, h: float, settings: SolverSetting
     """Solve equilibrium at jaw height ``h`` (mm) with the active-set loop."""
     jaw_active = state.jaw_active.copy()
     floor_active = state.floor_active.copy()
+    anchor_x = state.anchor_x.copy()
     u = state.u.copy()
     K_old = state.K
     iters = 0
     tol_pen = 1e-9 * max(1.0, h)
     for _ in range(settings.max_active_set):
-        trial = _State(u, jaw_active, floor_active)
+        trial = _State(u, jaw_active, floor_active, anchor_x, state.stick)
         fixed, values = _fixed_and_values(disc, trial, h)
         jump = np.where(fixed, values - u, 0.0)
         if np.any(jump != 0.0):
@@ -620,7 +640,9 @@ def _solve_step(disc, material, state: _State, h: float, settings: SolverSetting
         inn = disc.inner_nodes
         new_floor = np.where(floor_active, fy[inn] >= 0.0, y[inn] < -tol_pen)
         if np.array_equal(new_jaw, jaw_active) and np.array_equal(new_floor, floor_active):
-            return _State(u, jaw_active, floor_active, f, K), iters
+            return _State(u, jaw_active, floor_active, anchor_x, state.stick, f, K), iters
+        added = new_jaw & ~jaw_active
+        anchor_x[added] = disc.X[on[added], 0] + u[2 * on[added]]  # stick where it touched
         jaw_active, floor_active = new_jaw, new_floor
     raise _NewtonFailure("active set did not settle")
 
@@ -645,7 +667,10 @@ def _contact_measures(disc, state: _State):
             peak = float(np.max(-f[2 * jn[sel] + 1] / w[jn][sel]))
     fn = disc.inner_nodes[state.floor_active]
     inner_w = float(x[fn].max() - x[fn].min()) if fn.size else 0.0
-    return force_q, width_q, peak, inner_w
+    normal = float(np.abs(f[2 * jn + 1]).sum()) if jn.size else 0.0
+    tang = float(np.abs(f[2 * jn[disc.X[jn, 0] > 0]]).sum()) if state.stick and jn.size else 0.0
+    share = tang / normal if normal > 0 else 0.0
+    return force_q, width_q, peak, inner_w, share
 
 
 def run_case(spec: CaseSpec, progress=None) -> CaseResult:
@@ -673,8 +698,8 @@ def run_case(spec: CaseSpec, progress=None) -> CaseResult:
     fscale = material.mu * t
     scale_N = 2.0 * spec.jaw_length_mm  # quarter N/mm -> one jaw N
     h_end = 0.5 * spec.closed_gap_mm
-    state = _initial_state(disc, material)
-    rows = [dict(zip(COLUMNS, (2 * R, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0)))]
+    state = _initial_state(disc, material, spec.contact == "stick")
+    rows = [dict(zip(COLUMNS_2D, (2 * R, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0, 0.0)))]
     h = R
     dh = s.dh_initial_mm
     landing = sorted((0.5 * g for g in s.land_on_gaps_mm), reverse=True)
@@ -711,7 +736,7 @@ def run_case(spec: CaseSpec, progress=None) -> CaseResult:
             break
         dh = _grow_step(dh, iters, force_N, force_prev, s)
         force_prev = force_N
-    table = pd.DataFrame(rows, columns=list(COLUMNS))
+    table = pd.DataFrame(rows, columns=list(COLUMNS_2D))
     info = _solver_record(spec, disc, material, table, reason, total_newton, fail_log, h, t0)
     return CaseResult(table=table, status=status, info=info)
 
@@ -748,12 +773,14 @@ def _solver_record(
     }
 
 
-def _initial_state(disc: _Discretisation, material: Material) -> _State:
+def _initial_state(disc: _Discretisation, material: Material, stick: bool) -> _State:
     """Undeformed state at first touch: the top outer node(s) on the jaw, no floor contact."""
     state = _State(
         np.zeros(disc.ndof),
         np.zeros(disc.outer_nodes.size, dtype=bool),
         np.zeros(disc.inner_nodes.size, dtype=bool),
+        disc.X[disc.outer_nodes, 0].copy(),
+        stick,
     )
     top = np.flatnonzero(np.isclose(disc.X[disc.outer_nodes, 0], 0.0, atol=1e-12))
     state.jaw_active[top] = True
@@ -778,13 +805,13 @@ def _limit_step(
 def _step_row(
     disc: _Discretisation, state: _State, h: float, R: float, scale_N: float, iters: int
 ) -> dict:
-    """Table row (:data:`COLUMNS`) of a converged step at jaw height ``h`` (mm)."""
-    force_q, width_q, peak, inner_w = _contact_measures(disc, state)
+    """Table row (:data:`COLUMNS_2D`) of a converged step at jaw height ``h`` (mm)."""
+    force_q, width_q, peak, inner_w, share = _contact_measures(disc, state)
     force_N = force_q * scale_N
     _, J = _kinematics(disc, state.u)
     return dict(
         zip(
-            COLUMNS,
+            COLUMNS_2D,
             (
                 2 * h,
                 R - h,
@@ -796,6 +823,7 @@ def _step_row(
                 2 * inner_w,
                 float(J.min()),
                 iters,
+                share,
             ),
         )
     )
@@ -826,3 +854,5 @@ def _validate_spec(spec: CaseSpec) -> None:
     for name, value, ok in checks:
         if not (np.isfinite(value) and ok):
             raise ValueError(f"invalid {name}={value!r} (diameter_mm={spec.diameter_mm})")
+    if spec.contact not in CONTACTS_2D:
+        raise ValueError(f"invalid contact={spec.contact!r}; valid: {', '.join(CONTACTS_2D)}")

@@ -51,6 +51,15 @@ def test_3d_sweep_writes_the_contract_and_the_model_keys(tmp_path, capsys):
     f3 = table.set_index("gap_mm")["force_N"].iloc[-1]
     f2 = pd.read_csv(out2 / "mr_t1.40.csv").set_index("gap_mm")["force_N"].iloc[-1]
     assert f3 > 1.5 * f2 > 0
+    assert meta2["contact"] == "frictionless"
+
+
+def test_2d_sweep_with_stick_contact_records_it(tmp_path):
+    out = tmp_path / "stick2d"
+    assert _sweep(out, "--contact", "stick", "--closed-gap", "20") == 0
+    meta = json.loads((out / "mr_t1.40.json").read_text())
+    assert meta["model"] == "2d" and meta["contact"] == "stick"
+    assert pd.read_csv(out / "mr_t1.40.csv")["tangential_share"].max() > 0
 
 
 @pytest.mark.parametrize(
@@ -58,7 +67,7 @@ def test_3d_sweep_writes_the_contract_and_the_model_keys(tmp_path, capsys):
     [
         (["--ends", "seed"], "--ends: only with --model 3d"),
         (["--tube-length", "100"], "--tube-length: only with --model 3d"),
-        (["--contact", "stick"], "the 2D model is frictionless"),
+        (["--contact", "coulomb"], "not implemented"),
         (["--model", "3d", "--contact", "coulomb"], "not implemented"),
         (["--model", "3d", "--friction", "0.3"], "--friction"),
         (["--model", "3d", "--tube-length", "-5"], "--tube-length"),
