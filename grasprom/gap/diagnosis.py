@@ -59,6 +59,7 @@ from grasprom.gap.formats import FORMAT_REPORT, FORMAT_VERSION, jsonable
 from grasprom.gap.prepare import ANALYSIS_RATE_HZ, PHASES, PreparedTrial, prepare_trial
 from grasprom.gap.screening import bound_reasons, screen_trials
 from grasprom.gap.selection import CandidateSearch, effect_row, search_candidates
+from grasprom.gap.shrink import shrink_by_phase
 from grasprom.gap.trials import FloatArray, Trial
 from grasprom.gap.verdict import (
     Verdict,
@@ -215,7 +216,18 @@ def _report(
         "where": _where(gap, verdict.label, search.chosen),
         "effects": rows,
         "pairs": pair_out,
-        "verdict": verdict_section(verdict, gap, search),
+        "verdict": {
+            **verdict_section(verdict, gap, search),
+            "shrink_by_phase": [
+                row.as_dict()
+                for row in shrink_by_phase(
+                    gap.residuals,
+                    search.cv[search.chosen].residuals,
+                    gap.labels,
+                    [p.sigma for p in preps],
+                )
+            ],
+        },
         "warnings": warn_list,
         "settings": {
             "analysis_rate_hz": rate_hz,

@@ -32,6 +32,27 @@ def _explained_param_lines(report: dict[str, Any]) -> list[str]:
     return lines
 
 
+def _shrink_lines(v: dict[str, Any]) -> list[str]:
+    """The held-out shrink of the best candidate set per phase, with its bootstrap interval."""
+    rows = v.get("shrink_by_phase") or []
+    if not rows:
+        return []
+    who = " + ".join(v["best_candidate"]) or "-"
+    lines = [
+        "",
+        f"held-out shrink of {who} (90 % bootstrap interval over trials; < 0: worse)",
+        f"{'phase':<12}{'share':>7}{'rms before':>12}{'after N':>9}{'shrink':>9}{'interval':>17}",
+    ]
+    for r in rows:
+        ci = "" if r["low"] != r["low"] else f"[{r['low']:+.2f}, {r['high']:+.2f}]"
+        sh = "n/a" if r["shrink"] != r["shrink"] else f"{r['shrink']:+.2f}"
+        lines.append(
+            f"{r['phase']:<12}{r['share_of_gap']:7.2f}{r['rms_before_N']:12.3f}"
+            f"{r['rms_after_N']:9.3f}{sh:>9}{ci:>17}"
+        )
+    return lines
+
+
 def format_summary(report: dict[str, Any]) -> str:
     """Readable summary of a diagnosis report."""
     b = report["baseline"]
@@ -70,6 +91,7 @@ def format_summary(report: dict[str, Any]) -> str:
     ]
     if v["label"] == "explained":
         lines += _explained_param_lines(report)
+    lines += _shrink_lines(v)
     if v["label"] == "not_diagnosable":
         lines.append("  no augmented model is written")
     for wmsg in report["warnings"]:

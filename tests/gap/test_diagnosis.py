@@ -151,6 +151,12 @@ def test_blind_small_benchmark(surrogate):
         correct += v["label"] == "explained" and v["effects"] == [eff]
         shrinks.append(v["shrink"])
         assert 0.0 <= v["shrink"] <= 1.0 and 0.0 <= v["confidence"] <= 1.0
+        # the per-phase table's overall row is the verdict's held-out shrink (unclipped), and
+        # the bootstrap interval over the trials brackets it
+        overall = v["shrink_by_phase"][0]
+        assert overall["phase"] == "all" and overall["low"] <= overall["shrink"] <= overall["high"]
+        if v["label"] == "explained":
+            assert overall["shrink"] == pytest.approx(v["shrink"], abs=1e-9)
         # where.block from the jaw load cell: the block of the truth effect (three of each of
         # tissue and mechanism, two sensor cases); the block-attribution figure of
         # benchmarks/bench_diagnosis.py is 48/48 single cases (seed 2024, 96/96 on seeds 11, 777)
