@@ -3,6 +3,10 @@
 Usage::
 
     python benchmarks/bench_fe.py [--thickness 0.8,1.4,2.0] [--material mr,nh,le]
+    python benchmarks/bench_fe.py --crease [--thickness ...] [--material ...]
+
+``--crease``: the force in the crease band (six gaps from 2 t + 0.05 mm to 4 t) on the mesh
+and on its 2x refinement, and their ratio (target: within 3 %), plus the wall times.
 
 Prints, per case: DOFs, load steps, Newton iterations, failures (step cuts), status, wall time
 (s), and the time share of the vectorised assembly, the sparse solves and the rest. Printed, not
@@ -16,13 +20,41 @@ import cProfile
 import pstats
 import time
 
-from grasprom.fe import CaseSpec, MeshSpec, run_case
+import numpy as np
+
+from grasprom.fe import CaseSpec, MeshSpec, SolverSettings, run_case
 
 
 def _share(stats: pstats.Stats, name: str, total: float) -> float:
     """Cumulative-time share (%) of functions whose name contains ``name``."""
     cum = sum(v[3] for k, v in stats.stats.items() if name in k[2])
     return 100.0 * cum / total if total > 0 else 0.0
+
+
+def crease(mesh: MeshSpec, thicknesses: list[float], materials: list[str]) -> float:
+    """Crease-band convergence, mesh vs ``mesh.refined(2)``; returns the largest deviation."""
+    worst = 0.0
+    for mat in materials:
+        for t in thicknesses:
+            gaps = tuple(np.round(np.linspace(2 * t + 0.05, 4 * t, 6), 3))
+            forces, walls = [], []
+            for m in (mesh, mesh.refined(2)):
+                t0 = time.perf_counter()
+                tb = run_case(
+                    CaseSpec(mat, t, mesh=m, solver=SolverSettings(land_on_gaps_mm=gaps))
+                ).table
+                walls.append(time.perf_counter() - t0)
+                forces.append(
+                    [float(tb.loc[np.isclose(tb["gap_mm"], g), "force_N"].iloc[0]) for g in gaps]
+                )
+            rel = np.array(forces[0]) / np.array(forces[1]) - 1
+            worst = max(worst, float(np.abs(rel).max()))
+            print(f"{mat} t={t:.2f} gaps {' '.join(f'{g:7.3f}' for g in gaps)}")
+            print(f"  default N  {' '.join(f'{f:7.4f}' for f in forces[0])}  ({walls[0]:.1f} s)")
+            print(f"  refined N  {' '.join(f'{f:7.4f}' for f in forces[1])}  ({walls[1]:.1f} s)")
+            print(f"  def/ref-1  {' '.join(f'{r:+7.4f}' for r in rel)}", flush=True)
+    print(f"largest deviation in the crease band: {100 * worst:.2f} % (target 3 %)")
+    return worst
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -33,9 +65,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--n-layers", type=int, default=MeshSpec().n_layers)
     p.add_argument("--n-circ", type=int, default=MeshSpec().n_circ)
     p.add_argument("--profile", action="store_true", help="report assembly/solve time shares")
+    p.add_argument("--crease", action="store_true", help="crease-band mesh convergence")
     args = p.parse_args(argv)
     mesh = MeshSpec(n_layers=args.n_layers, n_circ=args.n_circ)
     print(f"mesh: {mesh}")
+    if args.crease:
+        ts = [float(x) for x in args.thickness.split(",")]
+        crease(mesh, ts, args.material.split(","))
+        return 0
     hdr = f"{'mat':>4} {'t_mm':>5} {'dofs':>6} {'steps':>5} {'newton':>6} {'cuts':>4} "
     hdr += f"{'status':>9} {'last_gap_mm':>11} {'wall_s':>7}"
     if args.profile:

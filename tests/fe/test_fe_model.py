@@ -79,14 +79,20 @@ def test_rigid_translation_is_stress_free():
     assert np.abs(f).max() < 1e-12
 
 
-@pytest.mark.parametrize("t", [0.8, 2.0])
+@pytest.mark.slow
+@pytest.mark.parametrize("t", [0.8])
 def test_mesh_convergence_default_vs_refined(t):
-    """Force changes <= 1 % (bending) and <= 3 % (walls met, compaction) under 2x refinement.
+    """Force changes <= 1 % (bending) and <= 3 % in the crease band and after the walls meet,
+    under 2x refinement of the default mesh (4 x 64 -> 8 x 128).
 
-    The steps land exactly on the three gaps, so no interpolation error enters.
-    Bending is checked at 10 mm, before the inner fold creases (see README).
+    The crease band (gap 2 t .. 4 t) is where the flattened wall folds and snaps inward; the
+    old 2 x 32 default missed 3 % there by up to 4.5 %.  t = 0.8 mm is the thinnest wall, where
+    the band deviates most (``benchmarks/bench_fe.py --crease``: 2.2 % at gap 1.65 mm; t = 1.4
+    and 2.0 mm within 1.1 %).  The steps land exactly on the gaps: no interpolation error.
     """
-    gaps = {"bending": 10.0, "walls_met": 2 * t - 0.05, "compaction": max(2 * t - 0.2, 1.5)}
+    band = np.round(np.linspace(2 * t + 0.05, 4 * t, 4), 3)
+    gaps = {"bending": 10.0, **{f"crease_{g}": float(g) for g in band}}
+    gaps |= {"walls_met": 2 * t - 0.05, "compaction": max(2 * t - 0.2, 1.5)}
     forces = {}
     solver = SolverSettings(land_on_gaps_mm=tuple(gaps.values()))
     for mesh in (MeshSpec(), MeshSpec().refined(2)):
@@ -99,9 +105,20 @@ def test_mesh_convergence_default_vs_refined(t):
             forces[mesh][k] = float(row["force_N"].iloc[0])
     coarse, fine = forces.values()
     rel = {k: abs(coarse[k] / fine[k] - 1) for k in gaps}
-    assert rel["bending"] <= 0.01, rel
-    assert rel["walls_met"] <= 0.03, rel
-    assert rel["compaction"] <= 0.03, rel
+    assert rel.pop("bending") <= 0.01, rel
+    assert max(rel.values()) <= 0.03, rel
+
+
+def test_the_old_2x32_mesh_misses_the_crease_band():
+    """The reason for the 4 x 64 default: 2 x 32 against 4 x 64 deviates > 3 % in the band."""
+    t = 1.4
+    gaps = (3.4, 3.95)
+    solver = SolverSettings(land_on_gaps_mm=gaps)
+    f = []
+    for mesh in (MeshSpec(2, 32), MeshSpec(2, 32).refined(2)):
+        tb = run_case(CaseSpec("mr", t, mesh=mesh, closed_gap_mm=3.9, solver=solver)).table
+        f.append(_force_at(tb, gaps))
+    assert np.abs(f[0] / f[1] - 1).max() > 0.03
 
 
 def test_one_layer_through_the_wall_is_too_coarse():
