@@ -18,7 +18,8 @@ fitting candidates to the jaw channel.
 Usage::
 
     python benchmarks/bench_diagnosis.py [--seed 2024] [--per-effect 6] [--null 14] \
-        [--ool 12] [--trials 4] [--workers 2] [--gap-channel] [--json results.json]
+        [--ool 12] [--trials 4] [--workers 2] [--gap-channel] [--json results.json] \
+        [--acquisition ideal|coarse|jitter|500hz|2khz|realistic] [--tremor DEG]
 
 About 1.5 minutes on 2 cores for the default 102 cases (77-94 s measured, with or without
 ``--gap-channel``).
@@ -111,11 +112,12 @@ def acquire(df, mode: str, rng: np.random.Generator):
 
 
 def run_case(case: dict, n_trials: int = 4, gap_channel: bool = False,
-             acquisition: str = "ideal") -> dict:  # fmt: skip
+             acquisition: str = "ideal", tremor_deg: float = 0.0) -> dict:  # fmt: skip
     """Synthesise and diagnose one case; returns truth, verdict and timing.
 
     ``gap_channel`` adds the measured jaw gap ``gap_mm`` to the synthetic trials;
-    ``acquisition`` records them as :func:`acquire` says.
+    ``acquisition`` records them as :func:`acquire` says; ``tremor_deg`` adds hand tremor
+    (deg RMS, 6-12 Hz) to the handle angle.
     """
     from grasprom.chain import kinematics as kin
     from grasprom.gap import diagnose, synth_case, validate_trial
@@ -124,7 +126,12 @@ def run_case(case: dict, n_trials: int = 4, gap_channel: bool = False,
     chain = kin.ChainParams()
     t0 = time.perf_counter()
     sc = synth_case(
-        case["effects"], seed=case["seed"], surrogate=s, n_trials=n_trials, gap_channel=gap_channel
+        case["effects"],
+        seed=case["seed"],
+        surrogate=s,
+        n_trials=n_trials,
+        gap_channel=gap_channel,
+        tremor_deg=tremor_deg,
     )
     rng = np.random.default_rng(case["seed"] + 17)
     trials = [
@@ -379,6 +386,8 @@ def main(argv=None) -> int:
     p.add_argument("--json", default=None, help="write all case results here")
     p.add_argument("--acquisition", choices=ACQUISITIONS, default="ideal",
                    help="how the synthetic trials are recorded (default ideal)")  # fmt: skip
+    p.add_argument("--tremor", type=float, default=0.0, metavar="DEG",
+                   help="hand tremor on the angle, deg RMS in 6-12 Hz (default 0)")  # fmt: skip
     args = p.parse_args(argv)
     cases = case_list(args.seed, args.per_effect, args.null, args.ool)
     t0 = time.perf_counter()
@@ -391,14 +400,20 @@ def main(argv=None) -> int:
                     [args.trials] * len(cases),
                     [args.gap_channel] * len(cases),
                     [args.acquisition] * len(cases),
+                    [args.tremor] * len(cases),
                     chunksize=2,
                 )
             )
     else:
-        results = [run_case(c, args.trials, args.gap_channel, args.acquisition) for c in cases]
+        results = [
+            run_case(c, args.trials, args.gap_channel, args.acquisition, args.tremor) for c in cases
+        ]
     if args.gap_channel:
         print("Trials with the measured jaw gap gap_mm (--gap-channel)\n")
-    print(f"Acquisition: {args.acquisition}, {args.trials} trials per case, seed {args.seed}\n")
+    print(
+        f"Acquisition: {args.acquisition}, {args.trials} trials per case, tremor "
+        f"{args.tremor:g} deg RMS, seed {args.seed}\n"
+    )
     print_report(results)
     print(f"  wall time {time.perf_counter() - t0:.0f} s with {args.workers} worker(s)")
     if args.json:

@@ -1077,6 +1077,13 @@ def _synth_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="add a measured jaw gap gap_mm (laser sensor at the jaw tips, 5-10 um rms)",
     )
+    p.add_argument(
+        "--tremor",
+        type=float,
+        default=0.0,
+        metavar="DEG",
+        help="hand tremor on the handle angle, deg RMS in 6-12 Hz (default 0: none)",
+    )
     src = p.add_mutually_exclusive_group()
     src.add_argument("--surrogate", default=None, metavar="FILE", help="surrogate JSON")
     src.add_argument("--fe", default=None, metavar="DIR", help="FE sweep (default shipped)")
@@ -1117,6 +1124,7 @@ def _cmd_synth(args: argparse.Namespace) -> int:
             material=args.material,
             jaw_load_cell=not args.no_jaw_cell,
             gap_channel=args.gap_channel,
+            tremor_deg=args.tremor,
         )
     except (OSError, ValueError) as exc:
         print(f"grasprom synth: {exc}", file=sys.stderr)

@@ -13,6 +13,7 @@ channel on or off changes no other value of a case.
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,6 +35,7 @@ from grasprom.surrogate import Surrogate
 GAP_NOISE_MM = (0.005, 0.010)
 """Range of the white noise (rms, mm) of the ``gap_mm`` channel (drawn per case)."""
 _GAP_STREAM = 0x6A9
+_TREMOR_STREAM = 0x7E3
 """Second seed word of the ``gap_mm`` channel's own random stream."""
 
 
@@ -104,6 +106,7 @@ def synth_case(
     material: str | None = None,
     jaw_load_cell: bool = True,
     gap_channel: bool = False,
+    tremor_deg: float = 0.0,
 ) -> SynthCase:
     """Synthesise the trials of one blind case.
 
@@ -128,6 +131,10 @@ def synth_case(
         Include the ``gap_mm`` channel (measured jaw gap at the tissue: kinematic gap after the
         truth backlash + truth jaw deflection ``c F^p`` + 5-10 um rms noise from a separate
         random stream, so every other value of the case is the same with and without it).
+    tremor_deg : float
+        Hand tremor on the handle angle, deg RMS, 6-12 Hz (0: none; from its own random
+        stream, like the gap channel).  Physiological tremor at the finger is of the order of
+        0.1 mm, i.e. about 0.1 deg of handle.
 
     Returns
     -------
@@ -148,12 +155,15 @@ def synth_case(
     if gap_channel:
         grng = np.random.default_rng([seed, _GAP_STREAM])
         gap_noise = (grng, float(grng.uniform(*GAP_NOISE_MM)))
+    if not (math.isfinite(tremor_deg) and tremor_deg >= 0):
+        raise ValueError(f"tremor_deg: must be >= 0 deg RMS, got {tremor_deg!r}")
+    tremor = (np.random.default_rng([seed, _TREMOR_STREAM]), tremor_deg) if tremor_deg else None
     trials = []
     infos = []
     for i in range(n_trials):
         spec = _trial_spec(i, rng, t_a, t_b, material)
         df, info = simulate_trial(
-            spec, truth_effects, surrogate, chain, rng, noise, jaw_noise, gap_noise
+            spec, truth_effects, surrogate, chain, rng, noise, jaw_noise, gap_noise, tremor
         )
         if not jaw_load_cell:
             df = df.drop(columns=["force_jaw_N"])
@@ -171,6 +181,8 @@ def synth_case(
     }
     if gap_noise is not None:
         truth["gap_noise_mm"] = gap_noise[1]
+    if tremor is not None:
+        truth["tremor_deg"] = tremor_deg
     return SynthCase(trials, truth)
 
 

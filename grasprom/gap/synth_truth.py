@@ -147,6 +147,29 @@ def theta_profile(spec: TrialSpec, theta_min: float, chain: kin.ChainParams) -> 
     return np.concatenate(parts)
 
 
+TREMOR_BAND_HZ = (6.0, 12.0)
+"""Band of the synthetic hand tremor (physiological tremor, Hz)."""
+
+
+def with_tremor(
+    theta: np.ndarray, rms_deg: float, rng: np.random.Generator, chain: kin.ChainParams
+) -> np.ndarray:
+    """``theta`` (deg, 1 kHz) with band-limited tremor of ``rms_deg`` (deg RMS, 6-12 Hz).
+
+    Zero-phase 4th-order Butterworth band-pass of white noise from ``rng``; faded out within
+    2 deg of the open end stop (the hand rests on it) and clipped to the chain's angle range.
+    """
+    if rms_deg <= 0:
+        return theta
+    from scipy.signal import butter, sosfiltfilt
+
+    sos = butter(4, TREMOR_BAND_HZ, "bandpass", fs=SAMPLE_RATE_HZ, output="sos")
+    tremor = sosfiltfilt(sos, rng.standard_normal(theta.size))
+    tremor *= rms_deg / max(float(tremor.std()), 1e-12)
+    fade = np.clip((chain.theta_open_deg - theta) / 2.0, 0.0, 1.0)
+    return np.clip(theta + fade * tremor, chain.theta_closed_deg, chain.theta_open_deg)
+
+
 # ----------------------------------------------------------------------------- one trial
 @dataclass
 class _JawLaw:
@@ -314,16 +337,20 @@ def simulate_trial(
     noise_N: float,
     jaw_noise_N: float,
     gap_noise: tuple[np.random.Generator, float] | None = None,
+    tremor: tuple[np.random.Generator, float] | None = None,
 ) -> tuple[pd.DataFrame, dict[str, Any]]:
     """One trial: measured table and truth info.
 
-    ``gap_noise`` = (its own generator, rms in mm) adds the ``gap_mm`` channel; ``rng`` is not
-    touched by it.
+    ``gap_noise`` = (its own generator, rms in mm) adds the ``gap_mm`` channel; ``tremor`` =
+    (its own generator, rms in deg) adds hand tremor to the angle (:func:`with_tremor`);
+    ``rng`` is touched by neither.
     """
     dt = 1.0 / SAMPLE_RATE_HZ
     law = _jaw_law(spec, effects, surrogate, chain, rng)
     theta_min = _squeeze_angle(law, spec, surrogate, chain)
     theta = theta_profile(spec, theta_min, chain)
+    if tremor is not None:
+        theta = with_tremor(theta, tremor[1], tremor[0], chain)
     n = theta.size
     time = dt * np.arange(n)
     theta_eff = _linkage_angle(theta, effects, chain)
