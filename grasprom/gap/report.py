@@ -43,9 +43,13 @@ def _shrink_lines(v: dict[str, Any]) -> list[str]:
         f"held-out shrink of {who} (90 % bootstrap interval over trials; < 0: worse)",
         f"{'phase':<12}{'share':>7}{'rms before':>12}{'after N':>9}{'shrink':>9}{'interval':>17}",
     ]
+
+    def known(x: Any) -> bool:  # NaN is null in the JSON report
+        return x is not None and x == x
+
     for r in rows:
-        ci = "" if r["low"] != r["low"] else f"[{r['low']:+.2f}, {r['high']:+.2f}]"
-        sh = "n/a" if r["shrink"] != r["shrink"] else f"{r['shrink']:+.2f}"
+        ci = f"[{r['low']:+.2f}, {r['high']:+.2f}]" if known(r["low"]) else ""
+        sh = f"{r['shrink']:+.2f}" if known(r["shrink"]) else "n/a"
         lines.append(
             f"{r['phase']:<12}{r['share_of_gap']:7.2f}{r['rms_before_N']:12.3f}"
             f"{r['rms_after_N']:9.3f}{sh:>9}{ci:>17}"
