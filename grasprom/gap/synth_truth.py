@@ -150,14 +150,27 @@ def theta_profile(spec: TrialSpec, theta_min: float, chain: kin.ChainParams) -> 
 TREMOR_BAND_HZ = (6.0, 12.0)
 """Band of the synthetic hand tremor (physiological tremor, Hz)."""
 
+HAND_STIFFNESS_N_PER_MM = 0.5
+"""Stiffness of the hand at the finger loop (N/mm; pinch-grip finger stiffness is of the order
+of 0.2-1 N/mm at low force): the tremor is a displacement in free motion and is held back by the
+tissue where the handle is stiffer than the hand."""
+
 
 def with_tremor(
-    theta: np.ndarray, rms_deg: float, rng: np.random.Generator, chain: kin.ChainParams
+    theta: np.ndarray,
+    rms_deg: float,
+    rng: np.random.Generator,
+    chain: kin.ChainParams,
+    handle_stiffness_N_per_deg: np.ndarray | None = None,
 ) -> np.ndarray:
-    """``theta`` (deg, 1 kHz) with band-limited tremor of ``rms_deg`` (deg RMS, 6-12 Hz).
+    """``theta`` (deg, 1 kHz) with band-limited hand tremor of ``rms_deg`` (deg RMS in free
+    motion, 6-12 Hz).
 
-    Zero-phase 4th-order Butterworth band-pass of white noise from ``rng``; faded out within
-    2 deg of the open end stop (the hand rests on it) and clipped to the chain's angle range.
+    Zero-phase 4th-order Butterworth band-pass of white noise from ``rng``; where the handle's
+    static stiffness ``S`` (N per deg of handle at the finger) is given, the tremor there is
+    scaled by ``1 / (1 + S / k_hand)`` with the hand's stiffness ``k_hand``
+    (:data:`HAND_STIFFNESS_N_PER_MM` at the finger loop); faded out within 2 deg of the open end
+    stop (the hand rests on it) and clipped to the chain's angle range.
     """
     if rms_deg <= 0:
         return theta
@@ -167,6 +180,9 @@ def with_tremor(
     tremor = sosfiltfilt(sos, rng.standard_normal(theta.size))
     tremor *= rms_deg / max(float(tremor.std()), 1e-12)
     fade = np.clip((chain.theta_open_deg - theta) / 2.0, 0.0, 1.0)
+    if handle_stiffness_N_per_deg is not None:
+        k_hand = HAND_STIFFNESS_N_PER_MM * chain.L3_mm * math.pi / 180.0  # N per deg
+        fade = fade / (1.0 + np.abs(handle_stiffness_N_per_deg) / k_hand)
     return np.clip(theta + fade * tremor, chain.theta_closed_deg, chain.theta_open_deg)
 
 
@@ -328,6 +344,22 @@ def _add_gap_channel(
     info["max_jaw_deflection_mm"] = float(np.max(g_true - g_kin))
 
 
+def _handle_stiffness(theta: np.ndarray, law: _JawLaw, chain: kin.ChainParams) -> np.ndarray:
+    """Static stiffness of the handle (N per deg at the finger) along ``theta`` (deg): the
+    true tissue through the chain, central difference over 1e-3 deg."""
+    d = 1e-3
+    lo = np.clip(theta - d, chain.theta_closed_deg, chain.theta_open_deg)
+    hi = np.clip(theta + d, chain.theta_closed_deg, chain.theta_open_deg)
+
+    def fi(th: np.ndarray) -> np.ndarray:
+        return np.asarray(
+            kin.handle_force_N(law.static(np.asarray(kin.gap_mm(th, chain))), th, chain)
+        )
+
+    s = (fi(hi) - fi(lo)) / np.maximum(hi - lo, 1e-12)
+    return np.nan_to_num(s, nan=0.0, posinf=0.0, neginf=0.0)
+
+
 def simulate_trial(
     spec: TrialSpec,
     effects: dict[str, dict[str, float]],
@@ -350,7 +382,9 @@ def simulate_trial(
     theta_min = _squeeze_angle(law, spec, surrogate, chain)
     theta = theta_profile(spec, theta_min, chain)
     if tremor is not None:
-        theta = with_tremor(theta, tremor[1], tremor[0], chain)
+        theta = with_tremor(
+            theta, tremor[1], tremor[0], chain, _handle_stiffness(theta, law, chain)
+        )
     n = theta.size
     time = dt * np.arange(n)
     theta_eff = _linkage_angle(theta, effects, chain)
