@@ -144,6 +144,11 @@ def run_case(case: dict, n_trials: int = 4, gap_channel: bool = False,
         warnings.simplefilter("ignore")
         d = diagnose(trials, s, chain)
     v = d.report["verdict"]
+    fresh = (
+        fresh_trial_shrink(case, n_trials, gap_channel, acquisition, tremor_deg, d.augmented)
+        if v["label"] == "explained" and d.augmented is not None
+        else None
+    )
     return {
         **case,
         **({"gap_channel": True} if gap_channel else {}),
@@ -160,7 +165,69 @@ def run_case(case: dict, n_trials: int = 4, gap_channel: bool = False,
         "rms_after_N": v["heldout_rms_after_N"],
         "where": d.report["where"],
         "by_block": d.report["baseline"]["by_block"],
+        "fresh_shrink": fresh,
         "seconds": time.perf_counter() - t0,
+    }
+
+
+def fresh_trial_shrink(
+    case: dict,
+    n_trials: int,
+    gap_channel: bool,
+    acquisition: str,
+    tremor_deg: float,
+    augmented: dict,
+) -> float:
+    """Independently measured shrink: the augmented model against the baseline on one more
+    trial of the same truth (trial ``n_trials + 1`` of the case's seed, which the diagnosis
+    never saw; same acquisition), ``1 - sqrt(max(ms_aug - s^2, 0) / (ms_base - s^2))`` with the
+    mean square residuals and the truth noise ``s`` (N): < 0 when the augmented model predicts
+    the new trial worse than the baseline."""
+    from grasprom.chain import kinematics as kin
+    from grasprom.gap import AugmentedModel, synth_case, validate_trial
+
+    s = _surrogate()
+    chain = kin.ChainParams()
+    sc = synth_case(
+        case["effects"],
+        seed=case["seed"],
+        surrogate=s,
+        n_trials=n_trials + 1,
+        gap_channel=gap_channel,
+        tremor_deg=tremor_deg,
+    )
+    rng = np.random.default_rng(case["seed"] + 29)
+    last = sc.trials[-1]
+    tr = validate_trial(acquire(last.data, acquisition, rng), last.sidecar, "fresh", chain, s)
+    effects = {e["name"]: dict(e["params"]) for e in augmented["effects"]}
+    args = (tr.time_s, tr.theta_deg, tr.thickness_mm, tr.material, s)
+    f_aug = AugmentedModel(effects, chain).handle_force_N(*args)
+    f_base = AugmentedModel({}, chain).handle_force_N(*args)
+    var = sc.truth["noise_N"] ** 2
+    ms_b = float(np.mean((tr.force_handle_N - f_base) ** 2)) - var
+    ms_a = float(np.mean((tr.force_handle_N - f_aug) ** 2)) - var
+    if ms_b <= 0:
+        return float("nan")
+    return 1.0 - float(np.sqrt(max(ms_a, 0.0) / ms_b))
+
+
+def _fresh_summary(results: list[dict]) -> dict:
+    """Median / worst of the independently measured shrink and its negative, confident cases."""
+    fr = [
+        r for r in results if r.get("fresh_shrink") is not None and np.isfinite(r["fresh_shrink"])
+    ]
+    vals = [r["fresh_shrink"] for r in fr]
+    neg = [
+        f"{'+'.join(r['effects']) or 'null'} -> {'+'.join(r['predicted'])} "
+        f"(conf {r['confidence']:.2f}, fresh shrink {r['fresh_shrink']:.2f})"
+        for r in fr
+        if r["fresh_shrink"] < 0 and r["confidence"] >= 0.5
+    ]
+    return {
+        "fresh_n": len(vals),
+        "fresh_median": float(np.median(vals)) if vals else float("nan"),
+        "fresh_worst": float(np.min(vals)) if vals else float("nan"),
+        "fresh_negative_conf_ge_0.5": neg,
     }
 
 
@@ -253,6 +320,7 @@ def summarise(results: list[dict]) -> dict:
         else float("nan"),
         "top1_first_effect_in_truth": float(np.mean(first_ok)) if lib else float("nan"),
         "median_shrink": float(np.median(shr)) if shr else float("nan"),
+        **_fresh_summary(results),
         "median_shrink_rms": float(np.median([r["shrink_rms"] for r in lib])) if lib else None,
         "null_to_none": float(np.mean([r["label"] == "none" for r in nulls]))
         if nulls
@@ -355,6 +423,12 @@ def print_report(results: list[dict]) -> None:
     print(
         f"  median held-out shrink of the systematic gap: {100 * s['median_shrink']:.1f} % "
         f"(of the total RMS incl. noise: {100 * s['median_shrink_rms']:.1f} %)"
+    )
+    print(
+        f"  independently measured shrink on a fresh trial (explained verdicts, "
+        f"n = {s['fresh_n']}): median {100 * s['fresh_median']:.1f} %, worst "
+        f"{100 * s['fresh_worst']:.1f} %; negative with confidence >= 0.5: "
+        f"{len(s['fresh_negative_conf_ge_0.5'])} {s['fresh_negative_conf_ge_0.5']}"
     )
     print(f"  null -> none: {100 * s['null_to_none']:.1f} %")
     print(
