@@ -3,6 +3,7 @@
 Sections (run all, or name some on the command line)::
 
     python benchmarks/bench_fe3d.py default       # default case: wall time, dofs, 3D/2D ratio
+    python benchmarks/bench_fe3d.py cases         # t 0.8/1.4/2.0 x mr/le, stick and frictionless
     python benchmarks/bench_fe3d.py contact       # stick vs frictionless at fixed gaps
     python benchmarks/bench_fe3d.py length        # tube-length convergence (L, 2L)
     python benchmarks/bench_fe3d.py mesh          # mesh convergence at fixed gaps
@@ -104,6 +105,77 @@ def bench_contact() -> dict:
     return {"stick": fs, "frictionless": ff, "2d": f2}
 
 
+CASE_GAPS = (20.0, 10.0, 5.0)
+"""Gaps (mm) of the per-case 3D / 2D table: bending (20, 10) and approach (5)."""
+
+
+def _shipped_case(mat: str, t: float, fe_dir: str = "fe_data/default"):
+    """The shipped 3D case (stick): its table and sidecar (``None`` if not there)."""
+    import pandas as pd
+
+    from grasprom.fe.datafiles import case_files, case_stem
+
+    files = case_files(fe_dir, case_stem(mat, t))
+    if not files.json.exists():
+        return None
+    return pd.read_csv(files.csv), json.loads(files.json.read_text())
+
+
+def _case_row(table, info: dict, f2: dict) -> dict:
+    f3 = _force_at(table, CASE_GAPS) if info.get("landed", True) else {}
+    gaps = np.asarray(table["gap_mm"])
+    force = np.asarray(table["force_N"])
+    if not f3:  # shipped tables do not land on the gaps: interpolate in log force
+        f3 = {
+            g: float(np.exp(np.interp(-g, -gaps, np.log(np.maximum(force, 1e-12)))))
+            for g in CASE_GAPS
+        }
+    return {
+        "wall_s": info["wall_time_s"],
+        "dofs": info["dofs"],
+        "steps": info["steps"],
+        "newton": info["newton_iterations"],
+        "newton_per_step": info["newton_iterations"] / max(info["steps"], 1),
+        "last_gap_mm": info["last_gap_mm"],
+        "last_force_N": float(force[-1]),
+        **{f"3d/2d@{g:g}": f3[g] / f2[g] for g in CASE_GAPS},
+    }
+
+
+def bench_cases(thicknesses=(0.8, 1.4, 2.0), materials=("mr", "le")) -> dict:
+    """Full strokes, t 0.8/1.4/2.0 x mr/le, stick (shipped) and frictionless: cost, 3D/2D.
+
+    The stick cases are the shipped ones (``fe_data/default``, their sidecars' wall time, run
+    while the sweep shared the machine); the frictionless ones run here.
+    """
+    rows = {}
+    for mat in materials:
+        for t in thicknesses:
+            r2 = run_case(CaseSpec(mat, t, solver=SolverSettings(land_on_gaps_mm=CASE_GAPS)))
+            f2 = _force_at(r2.table, CASE_GAPS)
+            shipped = _shipped_case(mat, t)
+            if shipped is not None:
+                table, meta = shipped
+                rows[(mat, t, "stick")] = _case_row(table, {**meta["fe_info"], "landed": False}, f2)
+            r = _run(
+                _with_gaps(CaseSpec3D(mat, t, contact="frictionless"), CASE_GAPS), f"{mat} t={t}"
+            )
+            rows[(mat, t, "frictionless")] = _case_row(r.table, r.info, f2)
+    cols = list(next(iter(rows.values())))
+    print("  " + " | ".join(["case", *cols]))
+    for k, v in rows.items():
+        cells = [f"{x:.3f}" if isinstance(x, float) else str(x) for x in v.values()]
+        print("  " + " | ".join([f"{k[0]} {k[1]} {k[2]}", *cells]), flush=True)
+    for mat in materials:
+        for t in thicknesses:
+            if (mat, t, "stick") not in rows:
+                continue
+            s, f = rows[(mat, t, "stick")], rows[(mat, t, "frictionless")]
+            ratio = {g: s[f"3d/2d@{g:g}"] / f[f"3d/2d@{g:g}"] - 1 for g in CASE_GAPS}
+            _print_row(f"{mat} {t} stick/frictionless-1", ratio, "{:9.4f}")
+    return {f"{k[0]}_{k[1]}_{k[2]}": v for k, v in rows.items()}
+
+
 def bench_length(lengths=(60.0, 120.0, 240.0)) -> dict:  # n_free: 3, 6, 9 (default mesh 9)
     """Tube-length convergence of the force at fixed gaps (free ends and seed ends)."""
     out = {}
@@ -201,6 +273,7 @@ def bench_shell() -> dict:
 SECTIONS = {
     "shell": bench_shell,
     "default": bench_default,
+    "cases": bench_cases,
     "contact": bench_contact,
     "length": bench_length,
     "mesh": bench_mesh,
