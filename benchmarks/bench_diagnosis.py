@@ -180,11 +180,15 @@ def fresh_trial_shrink(
 ) -> float:
     """Independently measured shrink: the augmented model against the baseline on one more
     trial of the same truth (trial ``n_trials + 1`` of the case's seed, which the diagnosis
-    never saw; same acquisition), ``1 - sqrt(max(ms_aug - s^2, 0) / (ms_base - s^2))`` with the
-    mean square residuals and the truth noise ``s`` (N): < 0 when the augmented model predicts
-    the new trial worse than the baseline."""
+    never saw; same acquisition): ``1 - sqrt(max(S_aug, 0) / S_base)``, ``S`` the weighted
+    systematic chi2 (sum of (residual / sigma)^2 less the sample count) on the analysis grid,
+    ``sigma`` the diagnosis' per-sample uncertainty (sensor noise, the angle quantum through
+    the local stiffness, 1 % of the force): < 0 when the augmented model predicts the new trial
+    worse than the baseline.  Unweighted, the holds dominate: there half an encoder count of a
+    0.0041 deg encoder is up to 3 N of handle force on the wall-contact rise."""
     from grasprom.chain import kinematics as kin
     from grasprom.gap import AugmentedModel, synth_case, validate_trial
+    from grasprom.gap.prepare import prepare_trial
 
     s = _surrogate()
     chain = kin.ChainParams()
@@ -203,12 +207,13 @@ def fresh_trial_shrink(
     args = (tr.time_s, tr.theta_deg, tr.thickness_mm, tr.material, s)
     f_aug = AugmentedModel(effects, chain).handle_force_N(*args)
     f_base = AugmentedModel({}, chain).handle_force_N(*args)
-    var = sc.truth["noise_N"] ** 2
-    ms_b = float(np.mean((tr.force_handle_N - f_base) ** 2)) - var
-    ms_a = float(np.mean((tr.force_handle_N - f_aug) ** 2)) - var
-    if ms_b <= 0:
+    p = prepare_trial(tr, s, chain)
+    idx = np.searchsorted(tr.time_s, p.t)
+    s_b = float(np.sum(((p.F - f_base[idx]) / p.sigma) ** 2)) - p.F.size
+    s_a = float(np.sum(((p.F - f_aug[idx]) / p.sigma) ** 2)) - p.F.size
+    if s_b <= 0:
         return float("nan")
-    return 1.0 - float(np.sqrt(max(ms_a, 0.0) / ms_b))
+    return 1.0 - float(np.sqrt(max(s_a, 0.0) / s_b))
 
 
 def _fresh_summary(results: list[dict]) -> dict:
