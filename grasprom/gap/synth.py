@@ -96,6 +96,40 @@ def _sidecar(spec: TrialSpec, i: int) -> dict[str, Any]:
     }
 
 
+def _gap_stream(seed: int) -> tuple[np.random.Generator, float]:
+    """The gap channel's own random stream and noise level (mm RMS)."""
+    grng = np.random.default_rng([seed, _GAP_STREAM])
+    return grng, float(grng.uniform(*GAP_NOISE_MM))
+
+
+def _truth(
+    effects: dict[str, dict[str, float]],
+    seed: int,
+    material: str,
+    noise: float,
+    jaw_noise: float,
+    infos: list[dict[str, Any]],
+) -> dict[str, Any]:
+    """The withheld truth of a case (``truth.json``)."""
+    return {
+        "effects": effects,
+        "in_library": [e for e in effects if e in LIBRARY_EFFECTS],
+        "out_of_library": [e for e in effects if e in OUT_OF_LIBRARY_EFFECTS],
+        "seed": seed,
+        "material": material,
+        "noise_N": noise,
+        "jaw_noise_N": jaw_noise,
+        "trials": infos,
+    }
+
+
+def _tremor_stream(seed: int, tremor_deg: float) -> tuple[np.random.Generator, float] | None:
+    """The tremor's own random stream and level (deg RMS), or None without tremor."""
+    if not (math.isfinite(tremor_deg) and tremor_deg >= 0):
+        raise ValueError(f"tremor_deg: must be >= 0 deg RMS, got {tremor_deg!r}")
+    return (np.random.default_rng([seed, _TREMOR_STREAM]), tremor_deg) if tremor_deg else None
+
+
 def synth_case(
     effects: Sequence[str] | dict[str, dict[str, float]] = (),
     *,
@@ -151,13 +185,8 @@ def synth_case(
     t_b = round(float(rng.uniform(max(lo_t, 1.3), min(hi_t, 1.8))), 2)
     noise = float(rng.uniform(0.03, 0.12))
     jaw_noise = float(rng.uniform(0.03, 0.1))
-    gap_noise = None
-    if gap_channel:
-        grng = np.random.default_rng([seed, _GAP_STREAM])
-        gap_noise = (grng, float(grng.uniform(*GAP_NOISE_MM)))
-    if not (math.isfinite(tremor_deg) and tremor_deg >= 0):
-        raise ValueError(f"tremor_deg: must be >= 0 deg RMS, got {tremor_deg!r}")
-    tremor = (np.random.default_rng([seed, _TREMOR_STREAM]), tremor_deg) if tremor_deg else None
+    gap_noise = _gap_stream(seed) if gap_channel else None
+    tremor = _tremor_stream(seed, tremor_deg)
     trials = []
     infos = []
     for i in range(n_trials):
@@ -169,16 +198,7 @@ def synth_case(
             df = df.drop(columns=["force_jaw_N"])
         trials.append(SynthTrial(df, _sidecar(spec, i)))
         infos.append(info | {"target_jaw_N": spec.target_jaw_N})
-    truth = {
-        "effects": truth_effects,
-        "in_library": [e for e in truth_effects if e in LIBRARY_EFFECTS],
-        "out_of_library": [e for e in truth_effects if e in OUT_OF_LIBRARY_EFFECTS],
-        "seed": seed,
-        "material": material,
-        "noise_N": noise,
-        "jaw_noise_N": jaw_noise,
-        "trials": infos,
-    }
+    truth = _truth(truth_effects, seed, material, noise, jaw_noise, infos)
     if gap_noise is not None:
         truth["gap_noise_mm"] = gap_noise[1]
     if tremor is not None:

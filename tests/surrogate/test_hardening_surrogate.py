@@ -23,6 +23,7 @@ from grasprom.cli import main
 from grasprom.fe import atomicio
 from grasprom.fe import datafiles as df
 from grasprom.fe.grid import build_grid
+from grasprom.fe.model2d import MeshSpec
 from grasprom.fe.sweep import run_sweep
 from grasprom.surrogate import (
     CHECK_TOLERANCE,
@@ -314,7 +315,13 @@ BAD_FE = [
         "mr_t1.00.json",
         ["force_cap_N: 200.0 != 50.0", "sweep.json"],
     ),
-    ("mesh-vs-manifest", _mesh_edit, FEDataError, "mr_t1.00.json", ["mesh.n_layers: 2 != 3"]),
+    (
+        "mesh-vs-manifest",
+        _mesh_edit,
+        FEDataError,
+        "mr_t1.00.json",
+        [f"mesh.n_layers: {MeshSpec().n_layers} != 3"],
+    ),
     (
         "mixed-no-manifest",
         _mixed_without_manifest,
