@@ -285,12 +285,7 @@ def model_keys(spec: Any) -> dict[str, Any]:
             "tube_length_mm": spec.tube_length_mm,
             "ends": spec.ends,
         }
-    return {
-        "model": "2d",
-        "contact": getattr(spec, "contact", "frictionless"),
-        "tube_length_mm": None,
-        "ends": None,
-    }
+    return {"model": "2d", "contact": spec.contact, "tube_length_mm": None, "ends": None}
 
 
 def _sidecar(

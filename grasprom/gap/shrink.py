@@ -48,6 +48,8 @@ class PhaseShrink:
         Held-out RMS of the residual before / after (N).
     n : int
         Samples in the phase.
+    systematic_before, systematic_after : float
+        ``S0`` and ``S1``: the weighted chi2 less the sample count (1) before / after.
     """
 
     phase: str
@@ -58,6 +60,8 @@ class PhaseShrink:
     rms_before_N: float
     rms_after_N: float
     n: int
+    systematic_before: float
+    systematic_after: float
 
     def as_dict(self) -> dict[str, float | str | int]:
         """The JSON form (report key ``verdict.shrink_by_phase``)."""
@@ -107,7 +111,7 @@ def shrink_by_phase(
     sigmas : sequence of ndarray
         Per trial: the noise standard deviation of every sample (N).
     n_boot : int
-        Bootstrap resamples.
+        Bootstrap resamples (0: no interval, ``low`` and ``high`` NaN).
     seed : int
         Seed of the resampling (the result is reproducible).
 
@@ -128,8 +132,9 @@ def shrink_by_phase(
     s1 = w1.sum(axis=0) - cnt.sum(axis=0)
     point = _shrink(s0, s1)
     n_tr = len(before)
-    lo = hi = np.full(point.shape, math.nan)
-    if n_tr >= MIN_TRIALS_INTERVAL:
+    lo = np.full(point.shape, math.nan)
+    hi = np.full(point.shape, math.nan)
+    if n_tr >= MIN_TRIALS_INTERVAL and n_boot > 0:
         rng = np.random.default_rng(seed)
         idx = rng.integers(0, n_tr, size=(n_boot, n_tr))
         counts = np.stack([np.bincount(row, minlength=n_tr) for row in idx])  # (n_boot, n_tr)
@@ -137,7 +142,6 @@ def shrink_by_phase(
         b1 = counts @ (w1 - cnt)
         boot = _shrink(b0, b1)
         q = (1.0 - INTERVAL) / 2.0
-        lo, hi = lo.copy(), hi.copy()
         for j in range(boot.shape[1]):
             col = boot[:, j][np.isfinite(boot[:, j])]
             if col.size:
@@ -159,6 +163,8 @@ def shrink_by_phase(
                 rms_before_N=float(math.sqrt(ss0[:, j].sum() / n_all[j])),
                 rms_after_N=float(math.sqrt(ss1[:, j].sum() / n_all[j])),
                 n=int(n_all[j]),
+                systematic_before=float(s0[j]),
+                systematic_after=float(s1[j]),
             )
         )
     return out

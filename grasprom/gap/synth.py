@@ -35,8 +35,9 @@ from grasprom.surrogate import Surrogate
 GAP_NOISE_MM = (0.005, 0.010)
 """Range of the white noise (rms, mm) of the ``gap_mm`` channel (drawn per case)."""
 _GAP_STREAM = 0x6A9
-_TREMOR_STREAM = 0x7E3
 """Second seed word of the ``gap_mm`` channel's own random stream."""
+_TREMOR_STREAM = 0x7E3
+"""Second seed word of the hand tremor's own random stream."""
 
 
 @dataclass

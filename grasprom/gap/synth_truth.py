@@ -161,14 +161,14 @@ def with_tremor(
     rms_deg: float,
     rng: np.random.Generator,
     chain: kin.ChainParams,
-    handle_stiffness_N_per_deg: np.ndarray | None = None,
+    handle_stiffness_N_per_deg: np.ndarray,
 ) -> np.ndarray:
     """``theta`` (deg, 1 kHz) with band-limited hand tremor of ``rms_deg`` (deg RMS in free
     motion, 6-12 Hz).
 
-    Zero-phase 4th-order Butterworth band-pass of white noise from ``rng``; where the handle's
-    static stiffness ``S`` (N per deg of handle at the finger) is given, the tremor there is
-    scaled by ``1 / (1 + S / k_hand)`` with the hand's stiffness ``k_hand``
+    Zero-phase 4th-order Butterworth band-pass of white noise from ``rng``, scaled by
+    ``1 / (1 + S / k_hand)`` with the handle's static stiffness ``S`` (N per deg of handle at
+    the finger, per sample) and the hand's stiffness ``k_hand``
     (:data:`HAND_STIFFNESS_N_PER_MM` at the finger loop); faded out within 2 deg of the open end
     stop (the hand rests on it) and clipped to the chain's angle range.
     """
@@ -179,10 +179,9 @@ def with_tremor(
     sos = butter(4, TREMOR_BAND_HZ, "bandpass", fs=SAMPLE_RATE_HZ, output="sos")
     tremor = sosfiltfilt(sos, rng.standard_normal(theta.size))
     tremor *= rms_deg / max(float(tremor.std()), 1e-12)
+    k_hand = HAND_STIFFNESS_N_PER_MM * chain.L3_mm * math.pi / 180.0  # N per deg
     fade = np.clip((chain.theta_open_deg - theta) / 2.0, 0.0, 1.0)
-    if handle_stiffness_N_per_deg is not None:
-        k_hand = HAND_STIFFNESS_N_PER_MM * chain.L3_mm * math.pi / 180.0  # N per deg
-        fade = fade / (1.0 + np.abs(handle_stiffness_N_per_deg) / k_hand)
+    fade = fade / (1.0 + np.abs(handle_stiffness_N_per_deg) / k_hand)
     return np.clip(theta + fade * tremor, chain.theta_closed_deg, chain.theta_open_deg)
 
 

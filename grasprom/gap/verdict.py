@@ -17,6 +17,7 @@ from grasprom.gap.baseline import BaselineGap
 from grasprom.gap.criteria import CONFIDENCE_PLATT, EXPLAINED_SHARE, SIGNIFICANT_RHO
 from grasprom.gap.prepare import PHASES
 from grasprom.gap.selection import CandidateSearch
+from grasprom.gap.shrink import shrink_by_phase
 from grasprom.gap.stats import rms, stats_by_label
 
 VERDICTS = ("explained", "none", "unexplained", "not_diagnosable")
@@ -33,29 +34,19 @@ def worse_phases(
     """Phases carrying >= :data:`PHASE_SHARE_SIGNIFICANT` of the systematic gap (weighted chi2
     less the sample count, as the explained share) whose held-out systematic chi2 the chosen
     effect set makes worse (> :data:`PHASE_WORSE` x the baseline's), each as a sentence with
-    the RMS before and after (N)."""
-    lab = np.concatenate(gap.labels)
-    sig = np.concatenate(sigmas)
-    r0 = np.concatenate(gap.residuals)
-    r1 = np.concatenate(search.cv[search.chosen].residuals)
-
-    def systematic(r: np.ndarray) -> np.ndarray:
-        """Weighted chi2 less the sample count, per phase."""
-        return np.array([np.sum((r[lab == i] / sig[lab == i]) ** 2) - np.sum(lab == i)
-                         for i in range(len(PHASES))])  # fmt: skip
-
-    sys0, sys1 = systematic(r0), systematic(r1)
-    total = float(np.sum(np.maximum(sys0, 0.0)))
-    out = []
-    for i, k in enumerate(PHASES):
-        share = max(sys0[i], 0.0) / total if total > 0 else 0.0
-        if share >= PHASE_SHARE_SIGNIFICANT and sys1[i] > PHASE_WORSE * sys0[i]:
-            m = lab == i
-            out.append(
-                f"{k} ({100 * share:.0f} % of the gap): held-out RMS "
-                f"{rms([r0[m]]):.3g} -> {rms([r1[m]]):.3g} N"
-            )
-    return out
+    the RMS before and after (N); the per-phase figures are :func:`~.shrink.shrink_by_phase`'s
+    (without its bootstrap)."""
+    rows = shrink_by_phase(
+        gap.residuals, search.cv[search.chosen].residuals, gap.labels, sigmas, n_boot=0
+    )
+    return [
+        f"{r.phase} ({100 * r.share_of_gap:.0f} % of the gap): held-out RMS "
+        f"{r.rms_before_N:.3g} -> {r.rms_after_N:.3g} N"
+        for r in rows
+        if r.phase != "all"
+        and r.share_of_gap >= PHASE_SHARE_SIGNIFICANT
+        and r.systematic_after > PHASE_WORSE * r.systematic_before
+    ]
 
 
 @dataclass
