@@ -125,27 +125,30 @@ def run_case(case: dict, n_trials: int = 4, gap_channel: bool = False,
     s = _surrogate()
     chain = kin.ChainParams()
     t0 = time.perf_counter()
+    # one trial more than diagnosed: the fresh trial of fresh_trial_shrink (the first
+    # n_trials are the same with or without it: the trials draw from their streams in turn)
     sc = synth_case(
         case["effects"],
         seed=case["seed"],
         surrogate=s,
-        n_trials=n_trials,
+        n_trials=n_trials + 1,
         gap_channel=gap_channel,
         tremor_deg=tremor_deg,
     )
+    *seen, unseen = sc.trials
     rng = np.random.default_rng(case["seed"] + 17)
     trials = [
         validate_trial(
             acquire(t.data, acquisition, rng), t.sidecar, f"case{case['seed']}_{i}", chain, s
         )  # fmt: skip
-        for i, t in enumerate(sc.trials)
+        for i, t in enumerate(seen)
     ]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         d = diagnose(trials, s, chain)
     v = d.report["verdict"]
     fresh = (
-        fresh_trial_shrink(case, n_trials, gap_channel, acquisition, tremor_deg, d.augmented)
+        fresh_trial_shrink(unseen, case["seed"], acquisition, d.augmented)
         if v["label"] == "explained" and d.augmented is not None
         else None
     )
@@ -170,39 +173,25 @@ def run_case(case: dict, n_trials: int = 4, gap_channel: bool = False,
     }
 
 
-def fresh_trial_shrink(
-    case: dict,
-    n_trials: int,
-    gap_channel: bool,
-    acquisition: str,
-    tremor_deg: float,
-    augmented: dict,
-) -> float:
+def fresh_trial_shrink(unseen, seed: int, acquisition: str, augmented: dict) -> float:
     """Independently measured shrink: the augmented model against the baseline on one more
-    trial of the same truth (trial ``n_trials + 1`` of the case's seed, which the diagnosis
-    never saw; same acquisition): ``1 - sqrt(max(S_aug, 0) / S_base)``, ``S`` the weighted
-    systematic chi2 (sum of (residual / sigma)^2 less the sample count) on the analysis grid,
-    ``sigma`` the diagnosis' per-sample uncertainty (sensor noise, the angle quantum through
+    trial of the same truth (``unseen``, the synthetic trial after the diagnosed ones of the
+    case ``seed``; recorded with the same ``acquisition``):
+    ``1 - sqrt(max(S_aug, 0) / S_base)``, ``S`` the weighted systematic chi2 (sum of
+    (residual / sigma)^2 less the sample count) on the analysis grid, ``sigma`` the
+    diagnosis' per-sample uncertainty (sensor noise, the angle quantum through
     the local stiffness, 1 % of the force): < 0 when the augmented model predicts the new trial
     worse than the baseline.  Unweighted, the holds dominate: there half an encoder count of a
     0.0041 deg encoder is up to 3 N of handle force on the wall-contact rise."""
     from grasprom.chain import kinematics as kin
-    from grasprom.gap import AugmentedModel, synth_case, validate_trial
+    from grasprom.gap import AugmentedModel, validate_trial
     from grasprom.gap.prepare import prepare_trial
 
     s = _surrogate()
     chain = kin.ChainParams()
-    sc = synth_case(
-        case["effects"],
-        seed=case["seed"],
-        surrogate=s,
-        n_trials=n_trials + 1,
-        gap_channel=gap_channel,
-        tremor_deg=tremor_deg,
-    )
-    rng = np.random.default_rng(case["seed"] + 29)
-    last = sc.trials[-1]
-    tr = validate_trial(acquire(last.data, acquisition, rng), last.sidecar, "fresh", chain, s)
+    rng = np.random.default_rng(seed + 29)
+    data = acquire(unseen.data, acquisition, rng)
+    tr = validate_trial(data, unseen.sidecar, "fresh", chain, s)
     effects = {e["name"]: dict(e["params"]) for e in augmented["effects"]}
     args = (tr.time_s, tr.theta_deg, tr.thickness_mm, tr.material, s)
     f_aug = AugmentedModel(effects, chain).handle_force_N(*args)
