@@ -1155,13 +1155,10 @@ def _main_synth(argv: Sequence[str] | None = None) -> int:
     return _cmd_synth(_synth_parser().parse_args(argv))
 
 
-def cli_reference(width: int = 100) -> str:
-    """The CLI reference block of README.md, generated from the parsers.
+def cli_help_pages(width: int = 100) -> list[tuple[str, str]]:
+    """The full ``--help`` text of every command, generated from the live parsers.
 
-    ``grasprom --help`` and ``grasprom build --help`` in full, then the usage line of every
-    other (sub)command; formatted at ``width`` columns.  ``tests/test_readme.py`` compares it
-    with README (regenerate: ``python -c "from grasprom.cli import cli_reference as c;
-    print(c())"``).
+    Used by the docs site's CLI reference (``docs/hooks.py``), so that page cannot drift.
 
     Parameters
     ----------
@@ -1170,7 +1167,9 @@ def cli_reference(width: int = 100) -> str:
 
     Returns
     -------
-    str
+    list of (str, str)
+        ``(command, help text)`` pairs: ``"grasprom"`` first, then every subcommand in the
+        order of ``grasprom --help`` (nested ones as ``"grasprom export fmu"``).
     """
     import contextlib
     import io
@@ -1180,25 +1179,21 @@ def cli_reference(width: int = 100) -> str:
     os.environ["COLUMNS"] = str(width)
     try:
         parser = _build_parser()
+        pages = [("grasprom", parser.format_help().rstrip())]
         subs = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-        parts = ["$ grasprom --help", parser.format_help().rstrip(), "",
-                 "$ grasprom build --help", subs.choices["build"].format_help().rstrip(), "",
-                 "$ grasprom <command> --help   # usage lines; run it for the details"]  # fmt: skip
         for name, sp in subs.choices.items():
-            if name == "build":
-                continue
             nested = [a for a in sp._actions if isinstance(a, argparse._SubParsersAction)]
             if nested:
-                for sp2 in nested[0].choices.values():
-                    parts.append(sp2.format_usage().rstrip())
+                for name2, sp2 in nested[0].choices.items():
+                    pages.append((f"grasprom {name} {name2}", sp2.format_help().rstrip()))
             elif name in ("diagnose", "synth"):
                 buf = io.StringIO()
                 with contextlib.redirect_stdout(buf), contextlib.suppress(SystemExit):
                     _delegated(name)(["--help"])
-                parts.append(buf.getvalue().split("\n\n")[0].rstrip())
+                pages.append((f"grasprom {name}", buf.getvalue().rstrip()))
             else:
-                parts.append(sp.format_usage().rstrip())
-        return "\n".join(parts) + "\n"
+                pages.append((f"grasprom {name}", sp.format_help().rstrip()))
+        return pages
     finally:
         if old is None:
             del os.environ["COLUMNS"]

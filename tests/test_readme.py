@@ -1,7 +1,7 @@
 """README.md cannot drift from reality.
 
-* Its CLI reference block equals the help generated from the live parsers
-  (:func:`grasprom.cli.cli_reference`), whitespace-normalised.
+* Every ``grasprom`` line of its bash blocks and of the docs pages parses with the live parsers
+  (the docs' CLI reference is generated from them: ``docs/hooks.py``).
 * Its first two commands, parsed from the file, run in a clean virtual environment
   (``python -m venv``, no system site-packages; pip may reuse the machine's cache) inside a
   temporary copy of the checkout, so the repository stays clean:
@@ -48,22 +48,6 @@ def test_readme_first_commands_are_the_documented_ones():
     assert main == MAIN_JOB
     assert tests == TEST_CMD  # .ci/run calls exactly this
     assert 'python -m pip install -e ".[dev]"' in (ROOT / ".ci" / "run").read_text()
-
-
-def _norm(text: str) -> str:
-    return " ".join(text.split())
-
-
-def test_cli_reference_matches_live_help():
-    from grasprom.cli import cli_reference
-
-    m = re.search(r"<!-- cli-reference:start -->\n```text\n(.*?)```\n<!-- cli-reference:end -->",
-                  README.read_text(), flags=re.S)  # fmt: skip
-    assert m, "README lacks the generated CLI reference block"
-    assert _norm(m.group(1)) == _norm(cli_reference()), (
-        "README's CLI reference is stale; regenerate with "
-        'python -c "from grasprom.cli import cli_reference as c; print(c())"'
-    )
 
 
 def _copy_checkout(dest: Path) -> None:
@@ -128,16 +112,20 @@ def test_readme_commands_in_fresh_venv(tmp_path):
     assert m and int(m.group(1)) > 100, res.stdout[-2000:]
 
 
-def test_every_grasprom_line_of_the_readme_parses():
+def test_every_grasprom_line_of_the_readme_and_docs_parses():
     """Issue 16: quickstart lines could not be pasted (``[--flag]``, ``...``). Every
-    ``grasprom ...`` line of README's bash blocks (comments stripped, continuations joined)
-    parses with the live argument parsers, and no block line carries ``[--`` placeholders."""
+    ``grasprom ...`` line of the bash blocks of README and the docs pages (comments stripped,
+    continuations joined) parses with the live argument parsers, and no block line carries
+    ``[--`` placeholders.  (``tests/test_doc_commands.py`` runs them; this is the quick check.)"""
     import shlex
 
     from grasprom.cli import _build_parser, _diagnose_parser, _synth_parser
+    from tests.test_doc_commands import bash_blocks, nav_pages
 
     bad = []
-    for block in re.findall(r"```bash\n(.*?)```", README.read_text(), flags=re.S):
+    blocks = [b for page in nav_pages() for b in bash_blocks(page)]
+    assert len(blocks) > 15
+    for block in blocks:
         text = re.sub(r"\\\n\s*", " ", block)
         for line in text.splitlines():
             code = line.split(" #")[0].strip() if not line.lstrip().startswith("#") else ""

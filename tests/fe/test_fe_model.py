@@ -113,6 +113,7 @@ def test_mesh_convergence_default_vs_refined(t):
     assert np.median(crease) <= 0.03 and max(crease) <= 0.10, rel
 
 
+@pytest.mark.slow
 def test_the_old_2x32_mesh_misses_the_crease_band():
     """The reason for the 4 x 64 default: 2 x 32 against 4 x 64 deviates > 3 % in the band."""
     t = 1.4
@@ -125,6 +126,7 @@ def test_the_old_2x32_mesh_misses_the_crease_band():
     assert np.abs(f[0] / f[1] - 1).max() > 0.03
 
 
+@pytest.mark.slow
 def test_one_layer_through_the_wall_is_too_coarse():
     """The default's 2 layers are needed: 1 layer misses the bending criterion (~6 % at t = 2)."""
     solver = SolverSettings(land_on_gaps_mm=(10.0,))
@@ -178,6 +180,7 @@ def stick_vs_frictionless():
     return gaps, out
 
 
+@pytest.mark.slow
 def test_stick_contact_2d_against_the_independent_model(stick_vs_frictionless):
     """Stick (seed 003's no sliding) vs frictionless in 2D.
 
@@ -203,8 +206,12 @@ def test_stick_contact_2d_against_the_independent_model(stick_vs_frictionless):
     assert 0.05 < share.iloc[-1] < 3.0 and share.max() > 0.1
 
 
-def test_contact_law_is_validated_and_recorded(stick_vs_frictionless):
+def test_contact_law_is_validated():
     with pytest.raises(ValueError, match="contact"):
         run_case(CaseSpec("mr", 1.4, contact="glue"))
+
+
+@pytest.mark.slow
+def test_both_contact_laws_complete(stick_vs_frictionless):
     _, res = stick_vs_frictionless
     assert res["stick"].status == res["frictionless"].status == "complete"

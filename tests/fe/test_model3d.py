@@ -211,6 +211,7 @@ def test_finite_jaw_is_stiffer_than_the_2d_strip(short_stroke):
     assert info["contact"] == "stick" and info["ends"] == "free" and info["steps"] >= 3
 
 
+@pytest.mark.slow
 def test_semi_membrane_reference_reduces_to_ring_theory():
     """A punch much longer than the n = 2 decay length: per unit length -> 2D ring theory
     (plus the punch-end loads spreading beyond it, ~ 2 / (beta_2 2 a) = 10 % here)."""

@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 
 import pandas as pd
+import pytest
 
 from grasprom.fe import datafiles as df
 from grasprom.fe.grid import build_grid
@@ -28,6 +29,7 @@ def _hashes(d: Path) -> dict[str, str]:
     return {p.name: json.loads(p.read_text())["csv_sha256"] for p in df.case_json_paths(d)}
 
 
+@pytest.mark.slow
 def test_kill_and_resume_loses_nothing_real_fe(tmp_path):
     out = tmp_path / "killed"
     cmd = [
@@ -61,6 +63,7 @@ def test_kill_and_resume_loses_nothing_real_fe(tmp_path):
     assert _hashes(clean) == after  # bit-identical to an uninterrupted sweep
 
 
+@pytest.mark.slow
 def test_dask_cluster_equals_process_pool_real_fe(tmp_path):
     from dask.distributed import LocalCluster
 

@@ -1,0 +1,150 @@
+"""Every shell command of README.md and docs/ runs as written.
+
+Each fenced ``bash`` block of README.md and of the docs pages (in the site's navigation order)
+is run with ``bash -euo pipefail`` in one scratch copy of the checkout, block after block, so a
+later block may use what an earlier one wrote (``build/`` of the main job, ``trials/`` of
+``grasprom synth``). A block fails the test when it exits non-zero. Three documented rules keep
+the run inside the suite's budget; they are the only changes made to a command:
+
+* ``pip install ...`` runs as ``pip install --dry-run --no-deps ...`` (it must resolve; it must
+  not replace the environment under test -- the real installs are run in a fresh virtual
+  environment by ``tests/test_readme.py``);
+* ``python -m pytest ...`` runs with ``--collect-only`` (running the suite from inside itself
+  would recurse);
+* a long command may carry a trailing comment ``# quick check: ARGS``: the test appends ARGS
+  (later options win in argparse), the reader sees the same quick variant next to the command.
+
+Lines ending in ``&`` (a Dask scheduler and worker) run in the background; the block's whole
+process group is killed when it ends. Marked ``slow`` (a few minutes): CI runs it in its second
+step.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+QUICK = re.compile(r"#\s*quick check:\s*(.+)$")
+
+
+def nav_pages() -> list[Path]:
+    """README.md, then the hand-written docs pages in the site's navigation order."""
+    nav = yaml.safe_load((ROOT / "mkdocs.yml").read_text())["nav"]
+    pages: list[str] = []
+
+    def walk(items):
+        for item in items:
+            value = next(iter(item.values())) if isinstance(item, dict) else item
+            if isinstance(value, list):
+                walk(value)
+            else:
+                pages.append(value)
+
+    walk(nav)
+    found = [ROOT / "docs" / p for p in pages if (ROOT / "docs" / p).exists()]
+    return [ROOT / "README.md", *found]
+
+
+def bash_blocks(page: Path) -> list[str]:
+    """The fenced ``bash`` blocks of a Markdown page."""
+    return re.findall(r"^```bash\n(.*?)^```", page.read_text(), flags=re.S | re.M)
+
+
+def as_run(line: str) -> str:
+    """One command line as the test runs it (the three rules of the module docstring)."""
+    quick = QUICK.search(line)
+    if quick:
+        line = line[: quick.start()].rstrip() + " " + quick.group(1).strip()
+    line = re.sub(r"(^|&& |; )pip install ", r"\1pip install --dry-run --no-deps ", line)
+    if re.search(r"python -m pytest\b", line):
+        line = line.rstrip() + " --collect-only"
+    return line
+
+
+def as_script(block: str) -> str:
+    """A block as the test runs it: continuation lines joined, each command rewritten."""
+    joined = re.sub(r"[ \t]*\\\n\s*", " ", block)
+    return "\n".join(as_run(line) for line in joined.splitlines())
+
+
+def _scratch_checkout(dest: Path) -> None:
+    files = subprocess.run(
+        ["git", "-C", str(ROOT), "ls-files", "-z", "--cached", "--others", "--exclude-standard"],
+        capture_output=True,
+        check=True,
+        timeout=60,
+    ).stdout.decode()
+    for rel in filter(None, files.split("\0")):
+        src = ROOT / rel
+        if src.is_file():
+            (dest / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, dest / rel)
+
+
+def _run_block(script: str, cwd: Path) -> subprocess.CompletedProcess:
+    env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=str(cwd))
+    env["PATH"] = str(Path(sys.executable).parent) + os.pathsep + env.get("PATH", "")
+    proc = subprocess.Popen(
+        ["bash", "-euo", "pipefail", "-c", script],
+        cwd=cwd,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        start_new_session=True,
+    )
+    try:
+        out, _ = proc.communicate(timeout=900)
+    finally:
+        try:
+            os.killpg(proc.pid, signal.SIGTERM)
+        except ProcessLookupError:
+            pass
+    return subprocess.CompletedProcess(proc.args, proc.returncode, out, "")
+
+
+def test_the_rules_rewrite_only_what_they_say():
+    assert as_run("pip install -e . && grasprom build --out build") == (
+        "pip install --dry-run --no-deps -e . && grasprom build --out build"
+    )
+    assert as_run('pip install -e ".[dev]" && python -m pytest -q').endswith(
+        "python -m pytest -q --collect-only"
+    )
+    assert as_run("grasprom sweep --out x   # quick check: --n-circ 8") == (
+        "grasprom sweep --out x --n-circ 8"
+    )
+    plain = "grasprom build --out build  # a comment"
+    assert as_run(plain) == plain
+    assert as_script("a \\\n    b\nc") == "a b\nc"
+
+
+def test_every_page_with_commands_is_found():
+    pages = {p.name for p in nav_pages() if bash_blocks(p)}
+    assert {"README.md", "getting-started.md", "fe-sweeps.md", "fmu.md"} <= pages
+
+
+@pytest.mark.slow
+def test_every_documented_command_runs_as_written(tmp_path):
+    if not shutil.which("git"):
+        pytest.fail("git is needed to copy the checkout") if os.environ.get("CI") else pytest.skip(
+            "git missing"
+        )
+    work = tmp_path / "checkout"
+    _scratch_checkout(work)
+    failures = []
+    for page in nav_pages():
+        for i, block in enumerate(bash_blocks(page), 1):
+            res = _run_block(as_script(block), work)
+            if res.returncode != 0:
+                failures.append(f"{page.name} block {i} (exit {res.returncode}):\n{block}\n"
+                                f"{res.stdout[-3000:]}")  # fmt: skip
+    assert not failures, "\n\n".join(failures)
