@@ -90,26 +90,26 @@ def _scratch_checkout(dest: Path) -> None:
             shutil.copy2(src, dest / rel)
 
 
-def _run_block(script: str, cwd: Path) -> subprocess.CompletedProcess:
+def _run_block(script: str, cwd: Path, log: Path) -> tuple[int, str]:
+    """Run one block; return its exit code and output.  The output goes to a file, not a pipe:
+    a background process of the block (``dask scheduler &``) would hold a pipe open."""
     env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=str(cwd))
     env["PATH"] = str(Path(sys.executable).parent) + os.pathsep + env.get("PATH", "")
-    proc = subprocess.Popen(
-        ["bash", "-euo", "pipefail", "-c", script],
-        cwd=cwd,
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        start_new_session=True,
-    )
-    try:
-        out, _ = proc.communicate(timeout=900)
-    finally:
+    with open(log, "w") as out:
+        cmd = ["bash", "-euo", "pipefail", "-c", script]
+        proc = subprocess.Popen(
+            cmd, cwd=cwd, env=env, stdout=out, stderr=subprocess.STDOUT, start_new_session=True
+        )
         try:
-            os.killpg(proc.pid, signal.SIGTERM)
-        except ProcessLookupError:
-            pass
-    return subprocess.CompletedProcess(proc.args, proc.returncode, out, "")
+            code = proc.wait(timeout=900)
+        except subprocess.TimeoutExpired:
+            code = -1
+        finally:
+            try:
+                os.killpg(proc.pid, signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+    return code, log.read_text()
 
 
 def test_the_rules_rewrite_only_what_they_say():
@@ -143,8 +143,7 @@ def test_every_documented_command_runs_as_written(tmp_path):
     failures = []
     for page in nav_pages():
         for i, block in enumerate(bash_blocks(page), 1):
-            res = _run_block(as_script(block), work)
-            if res.returncode != 0:
-                failures.append(f"{page.name} block {i} (exit {res.returncode}):\n{block}\n"
-                                f"{res.stdout[-3000:]}")  # fmt: skip
+            code, out = _run_block(as_script(block), work, tmp_path / f"{page.stem}_{i}.log")
+            if code != 0:
+                failures.append(f"{page.name} block {i} (exit {code}):\n{block}\n{out[-3000:]}")
     assert not failures, "\n\n".join(failures)
