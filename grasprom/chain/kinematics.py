@@ -101,6 +101,7 @@ __all__ = [
     "linkage_points_mm",
     "linkage_state",
     "plot_transmission",
+    "seed_comparison",
     "seed_jaw_force_N",
     "seed_transmission_ratio",
     "slider_x_mm",
@@ -778,6 +779,54 @@ def seed_jaw_force_N(
     return _out(np.asarray(handle_force_N, dtype=float) * ratio - spring)
 
 
+def seed_comparison(p: ChainParams) -> dict[str, dict[str, float]]:
+    """Why seed 003's ``Fg/Fi`` sits several times below the derived chain, at both end stops.
+
+    Seed eq (2) takes the rod force as the crank-tip force ``Fi L3 / L1`` projected with
+    ``cos(phi) cos(beta)``.  Virtual work gives the rod force ``Fi L3 / |u'|`` with ``|u'|`` the
+    rod travel per radian of handle, ``|u'| = L1 sin(mu) / cos(beta)`` (``mu`` the angle between
+    crank and link).  The crank and the link stay nearly in line, so the rod moves only a few
+    mm per radian instead of ``L1``, and ``derived / seed = 1 / (sin(mu) cos(phi))``.  Not a
+    bug of either curve: the printed formula does not conserve energy (module docstring).
+
+    Parameters
+    ----------
+    p : ChainParams
+
+    Returns
+    -------
+    dict
+        ``{"open": {...}, "closed": {...}}`` at ``theta_open_deg`` and ``theta_closed_deg``,
+        each with ``theta_deg``, ``derived_pct`` and ``seed_pct`` (``Fg/Fi`` in %, spring
+        excluded), ``derived_over_seed`` (1), ``rod_mm_per_rad`` (``|u'|``, mm/rad),
+        ``crank_mm`` (``L1``, mm) and ``mu_deg`` (crank-link angle, deg).
+    """
+    out = {}
+    for key, th in (("open", p.theta_open_deg), ("closed", p.theta_closed_deg)):
+        _g1, _fs, du, _ddu, _g2 = _spring_terms(float(th), p)
+        derived = float(transmission_ratio(th, p))
+        seed = float(seed_transmission_ratio(th, p))
+        rod = abs(float(du))
+        cos_b = math.cos(math.radians(float(beta_deg(th, p))))
+        out[key] = {"theta_deg": float(th), "derived_pct": 100.0 * derived,
+                    "seed_pct": 100.0 * seed, "derived_over_seed": derived / seed,
+                    "rod_mm_per_rad": rod, "crank_mm": p.L1_mm,
+                    "mu_deg": math.degrees(math.asin(rod * cos_b / p.L1_mm))}  # fmt: skip
+    return out
+
+
+def _seed_note(p: ChainParams) -> str:
+    """Two-line note of the transmission figure: why the seed curve sits below (numbers)."""
+    c = seed_comparison(p)
+    o, k = c["open"], c["closed"]
+    return (
+        f"seed eq (2) moves the rod by L1 = {o['crank_mm']:g} mm per rad; the linkage moves it "
+        f"{o['rod_mm_per_rad']:.2f}-{k['rod_mm_per_rad']:.2f} mm/rad\n"
+        f"(crank-link angle {o['mu_deg']:.1f}-{k['mu_deg']:.1f} deg): seed "
+        f"{o['derived_over_seed']:.1f}x (open) to {k['derived_over_seed']:.1f}x (closed) below"
+    )
+
+
 def plot_transmission(p: ChainParams, path: str | Path, n: int = 221) -> Path:
     """Plot ``Fg/Fi`` (percent) vs ``theta`` (deg), derived chain and seed formula (Fig. 6).
 
@@ -806,7 +855,7 @@ def plot_transmission(p: ChainParams, path: str | Path, n: int = 221) -> Path:
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
     ax.plot(th, derived, "C0-", lw=2, label="derived chain (virtual work), $L_3/g'(\\theta)$")
-    ax.plot(th, seed, "C3--", lw=2, label="seed 003 eqs (1)-(4), same m/n")
+    ax.plot(th, seed, "C3--", lw=2, label="seed 003 eqs (1)-(4) as printed, same m/n")
     ax.axvline(p.theta_touch_deg, color="0.6", lw=1, ls=":")
     ax.text(
         p.theta_touch_deg - 0.2,
@@ -816,6 +865,8 @@ def plot_transmission(p: ChainParams, path: str | Path, n: int = 221) -> Path:
         fontsize=8,
         ha="right",
     )
+    ax.text(0.98, 0.17, _seed_note(p), transform=ax.transAxes, fontsize=7, ha="right",
+            va="bottom", color="C3")  # fmt: skip
     ax.set_xlabel(r"handle angle $\theta$ (deg)  (closed 0 $\rightarrow$ open)")
     ax.set_ylabel(r"$F_g / F_i$ (%)")
     ax.set_title("Force transmission handle -> jaw (spring excluded)")

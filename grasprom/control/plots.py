@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -20,7 +20,7 @@ from grasprom.fe.materials import material_label
 if TYPE_CHECKING:  # matplotlib is imported when plotting
     from matplotlib.figure import Figure
 
-__all__ = ["plot_transparency", "plot_tuning"]
+__all__ = ["plot_transparency", "plot_tuning", "zwidth_figure"]
 
 
 def plot_tuning(result: TuningResult, out_dir: str | Path) -> dict[str, Path]:
@@ -139,34 +139,101 @@ def _plot_stiffness(result: TuningResult, path: Path) -> Path:
 
 
 def _plot_zwidth(result: TuningResult, path: Path) -> Path:
-    """Z-width (passive K over B, N m/rad vs N m s/rad) with the operating points."""
+    """Write :func:`zwidth_figure` of ``result`` to ``path`` (PNG)."""
+    fig = zwidth_figure(result)
+    fig.savefig(path, dpi=110)
+    return path
+
+
+def zwidth_figure(result: TuningResult) -> Figure:
+    """Z-width (passive K over B) with the operating points, and the points case by case.
+
+    Every operating point shares the chosen virtual damping ``B``, so on the Z-width plane
+    (left) they stack on one vertical line; the left panel draws that line as the span of the
+    rendered stiffness with the stiffest point marked.  The right panel spreads them out: one
+    column per case (material, thickness), the rendered stiffness at each handle angle of the
+    stroke (symlog axis: the negative slopes where the spring is released show too), the
+    largest of each case marked, against the passive bound at the chosen ``B`` with and
+    without the tuning's safety factor.  Each case's artists carry ``gid = "material
+    thickness"``.
+
+    Parameters
+    ----------
+    result : TuningResult
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    fig = _figure((12.0, 4.6))
+    ax1 = fig.add_subplot(1, 2, 1)
+    ax2 = fig.add_subplot(1, 2, 2)
+    _draw_zwidth_plane(ax1, result)
+    _draw_operating_columns(ax2, result)
+    fig.tight_layout()
+    return fig
+
+
+def _draw_zwidth_plane(ax: Any, result: TuningResult) -> None:
+    """Passive region over (B, K), the Colgate line and the operating span at the chosen B."""
     p, dev = result.params, result.device
     T, B, fc = p.sample_time_s, virtual_damping_Nms_per_rad(p), p.velocity_cutoff_Hz
     bmax = max(4.0 * B, 2.0 * dev.damping_Nms_per_rad)
     Bs, Ks = zwidth_boundary(dev.damping_Nms_per_rad, T, fc, dev.delay_samples, bmax)
     _, K0 = zwidth_boundary(dev.damping_Nms_per_rad, T, None, 0, bmax)
-    fig = _figure((6.0, 4.4))
-    ax = fig.add_subplot(1, 1, 1)
-    ax.fill_between(
-        Bs,
-        0,
-        Ks,
-        color="C2",
-        alpha=0.25,
-        label=f"passive (delay {dev.delay_samples}, cutoff {fc:g} Hz)",
-    )
+    ax.fill_between(Bs, 0, Ks, color="C2", alpha=0.25,
+                    label=f"passive (delay {dev.delay_samples}, cutoff {fc:g} Hz)")  # fmt: skip
     ax.plot(Bs, K0, "k--", lw=1, label="Colgate b > KT/2 + |B| (no delay)")
     allK = np.concatenate([o.K_Nm_per_rad for o in result.points])
-    ax.plot(np.full_like(allK, B), allK, "C0.", ms=2, label="operating points (chosen B)")
+    k_hi = float(np.max(allK))
+    ax.vlines(B, max(float(np.min(allK)), 0.0), k_hi, color="C0", lw=3,
+              label=f"operating points: all at B = {B:.3g} N m s/rad")  # fmt: skip
+    at = result.summary.get("max_at", {})
+    where = f" ({at['material']} {at['thickness_mm']:g} mm)" if "material" in at else ""
+    ax.plot([B], [k_hi], "C3*", ms=11, label=f"stiffest: {k_hi:.3g} N m/rad{where}")
     ax.set_xlabel("virtual damping B (N m s/rad)")
     ax.set_ylabel("rendered stiffness K (N m/rad)")
     ax.set_title("Z-width at the handle pivot", fontsize=10)
-    ax.set_ylim(0, 1.2 * max(float(np.max(Ks)), float(np.max(K0[:1])), float(np.max(allK))))
+    ax.set_ylim(0, 1.2 * max(float(np.max(Ks)), float(np.max(K0[:1])), k_hi))
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    return path
+
+
+def _draw_operating_columns(ax: Any, result: TuningResult) -> None:
+    """One column per case: rendered K over the stroke, its maximum, the passive bounds."""
+    sm = result.summary
+    pts = sorted(result.points, key=lambda o: (o.material, o.thickness_mm))
+    mats = sorted({o.material for o in pts})
+    for x, o in enumerate(pts):
+        col = f"C{mats.index(o.material)}"
+        gid = f"{o.material} {o.thickness_mm:g}"
+        k = np.asarray(o.K_Nm_per_rad, dtype=float)
+        ax.plot(np.full_like(k, float(x)), k, ".", color=col, ms=2, alpha=0.5, gid=gid,
+                label=material_label(o.material) if x == 0 or o.material != pts[x - 1].material
+                else None)  # fmt: skip
+        ax.plot([x], [float(np.max(k))], "_", color="k", ms=9, mew=1.5, gid=f"{gid} max")
+    k_pass = sm["passive_stiffness_Nm_per_rad"]
+    ax.axhline(k_pass, color="C3", lw=1.2, label=f"passive bound {k_pass:.3g} N m/rad")
+    k_safe = sm.get("passive_stiffness_with_margin_Nm_per_rad")
+    if k_safe is not None:
+        ax.axhline(k_safe, color="C3", lw=1.0, ls="--",
+                   label=f"with safety {sm.get('safety_factor', 1.0):g}: "
+                   f"{k_safe:.3g} N m/rad")  # fmt: skip
+    ax.set_yscale("symlog", linthresh=0.1)
+    k_lo = min(float(np.min(o.K_Nm_per_rad)) for o in pts)
+    k_top = max(k_pass, max(float(np.max(o.K_Nm_per_rad)) for o in pts))
+    ax.set_ylim(2.0 * min(k_lo, 0.0), 2.0 * k_top)
+    for m in mats:
+        xs = [x for x, o in enumerate(pts) if o.material == m]
+        ax.text(float(np.mean(xs)), 1.01, material_label(m), fontsize=7, ha="center",
+                va="bottom", transform=ax.get_xaxis_transform())  # fmt: skip
+    ax.set_xticks(range(len(pts)))
+    ax.set_xticklabels([f"{o.thickness_mm:g}" for o in pts], fontsize=7)
+    ax.set_xlabel("case: wall thickness (mm), grouped by material")
+    ax.set_ylabel("rendered K over the stroke (N m/rad)")
+    ax.set_title("operating points by case (dots: handle angles; bar: max)", fontsize=10, pad=14)
+    ax.grid(True, alpha=0.3, which="both")
+    ax.legend(fontsize=7, loc="lower left")
 
 
 def _plot_bode(result: TuningResult, path: Path) -> Path:

@@ -45,7 +45,8 @@ class BuildOptions:
         Output folder (created).
     fast : bool
         Shorter run for tests: coarser tuning grid without the simulation check, no simavr
-        cycle measurement nor host error run, shorter co-simulation.
+        cycle measurement nor host error run, a shorter rest after the co-simulated grasp (its
+        figures are those of the full run).
     command_line : sequence of str, optional
         Command line recorded in the provenance block (default ``sys.argv``).
     augmented : str or Path, optional

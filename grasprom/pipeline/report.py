@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from grasprom.pipeline.buildinfo import provenance
+from grasprom.pipeline.headline import FAIL, PASS, built_items, headline_rows
 from grasprom.pipeline.options import BuildOptions
 from grasprom.pipeline.result import BuildResult, results
 
@@ -31,7 +32,16 @@ FIGURES = (
         "Surrogate (lines) over FE points (held-out cases when available): force, "
         "zoom on wall contact, stiffness",
     ),
-    ("transmission", "Fg/Fi vs handle angle theta: derived chain and seed formula"),
+    (
+        "residuals",
+        "Residuals surrogate - FE at the FE points (held-out cases when available): N over "
+        "the gap, and % of the haptic scale over the haptic range with the 3 % target",
+    ),
+    (
+        "transmission",
+        "Fg/Fi vs handle angle theta: derived chain (virtual work) and seed 003's formula as "
+        "printed (why they differ: the text below)",
+    ),
     (
         "stiffness",
         "Rendered and raw-tissue stiffness at the handle pivot vs theta, with the passive bound",
@@ -54,7 +64,8 @@ _STYLE = (
     "max-width:1100px;margin:auto}table{border-collapse:collapse;margin:0.5em 0}"
     "td,th{border:1px solid #bbb;padding:2px 6px;text-align:right}"
     "img{max-width:100%}pre{background:#f4f4f4;padding:6px;overflow-x:auto}"
-    ".fail{color:#b00}</style></head><body>"
+    "pre.wrap{white-space:pre-wrap;overflow-wrap:anywhere}td.text{text-align:left}"
+    ".fail{color:#b00}.pass{color:#070}</style></head><body>"
 )
 
 _ERROR_HEADER = ["scheme", "range", "material", "F rms %FS", "F max %FS", "gap rms mm",
@@ -166,7 +177,7 @@ def _surrogate_section(res: BuildResult) -> list[str]:
     parts.append(f"<p>FE sweep {html.escape(str(res.fe_dir))}: materials "
                  f"{', '.join(s.materials)}, {s.node_count()} surrogate nodes, scheme "
                  f"{s.scheme}.</p>")  # fmt: skip
-    parts += _figures(res.figures, ("fe_sweep", "surrogate"))
+    parts += _figures(res.figures, ("fe_sweep", "surrogate", "residuals"))
     if "holdout" in s.errors:
         parts.append(f"<h3>Held-out error ({html.escape(str(res.holdout_dir))})</h3>")
         parts.append(_table(_ERROR_HEADER, error_rows(s.errors["holdout"])))
@@ -181,12 +192,54 @@ def _surrogate_section(res: BuildResult) -> list[str]:
 
 
 def _chain_section(res: BuildResult) -> list[str]:
-    """The transmission figure."""
+    """The transmission figure and why seed 003's curve sits below the derived chain."""
     if "transmission" not in res.figures:
         return []
     return [
-        "<h2>Kinematic chain</h2>" + _img(res.figures["transmission"], _CAPTIONS["transmission"])
+        "<h2>Kinematic chain</h2>" + _img(res.figures["transmission"], _CAPTIONS["transmission"]),
+        f"<p>{html.escape(seed_explanation(_chain(res)))}</p>",
     ]
+
+
+def _chain(res: BuildResult) -> Any:
+    """The chain of the build's controller (the default one before the tuning)."""
+    from grasprom.control import ControllerParams
+
+    return (res.params or ControllerParams()).chain_params
+
+
+def seed_explanation(chain: Any) -> str:
+    """Why seed 003's ``Fg/Fi`` sits below the derived chain, with this chain's numbers.
+
+    Parameters
+    ----------
+    chain : grasprom.chain.kinematics.ChainParams
+
+    Returns
+    -------
+    str
+        One paragraph (plain text): the ratio derived / seed at the end stops, the rod
+        travel per radian (mm/rad) against the crank ``L1`` (mm), the crank-link angle (deg).
+    """
+    from grasprom.chain.kinematics import seed_comparison
+
+    c = seed_comparison(chain)
+    o, k = c["open"], c["closed"]
+    return (
+        f"The seed 003 curve is eqs (1)-(4) as printed, with this chain's m/n: it is "
+        f"{o['derived_over_seed']:.1f}x below the derived chain when open ({o['seed_pct']:.1f} "
+        f"vs {o['derived_pct']:.1f} %) and {k['derived_over_seed']:.1f}x when closed "
+        f"({k['seed_pct']:.1f} vs {k['derived_pct']:.1f} %). Eq (2) takes the rod force as the "
+        f"crank-tip force Fi L3/L1 projected with cos(phi) cos(beta), i.e. as if the rod moved "
+        f"L1 = {o['crank_mm']:g} mm per radian of handle; with Table 1's lengths and eq (3)'s "
+        f"layout the crank and the link stay nearly in line (angle {o['mu_deg']:.1f} deg open, "
+        f"{k['mu_deg']:.1f} deg closed), so the rod moves only {o['rod_mm_per_rad']:.2f}-"
+        f"{k['rod_mm_per_rad']:.2f} mm per radian and virtual work gives the rod force "
+        "Fi L3 / (rod travel per radian): derived / seed = 1 / (sin(crank-link angle) "
+        "cos(phi)). Not a bug: the printed formula does not conserve energy (a handle force "
+        "rendered with it would create or destroy energy over a grasp), so the controller uses "
+        "the derived chain; the spring terms of both agree."
+    )
 
 
 def _tuning_section(res: BuildResult) -> list[str]:
@@ -203,7 +256,7 @@ def _tuning_section(res: BuildResult) -> list[str]:
         )
     parts.append(_table(["quantity", "value"], _tuning_rows(res.tuning)))
     parts += _transparency_parts(res.tuning, res.figures)
-    parts.append(f"<pre>{html.escape(res.tuning.report())}</pre>")
+    parts.append(f"<pre class='wrap'>{html.escape(res.tuning.report())}</pre>")
     parts += _figures(res.figures, ("zwidth", "stiffness", "bode"))
     return parts
 
@@ -325,6 +378,8 @@ def _cosim_section(res: BuildResult) -> list[str]:
         f"{cs.col('torque_Nm').max():.3f} N m; FMU vs Python reference torque: "
         f"max |diff| {cs.max_torque_diff_Nm:.2e} N m; {cs.wall_s:.1f} s.</p>"
     )
+    parts.append(f"<p>{html.escape(open_handle_explanation(res.params, cs))}</p>")
+    parts.append(f"<p>{html.escape(profile_explanation())}</p>")
     st = cs.settling
     if st:
         parts.append(
@@ -335,6 +390,64 @@ def _cosim_section(res: BuildResult) -> list[str]:
         )
     parts += _figures(res.figures, ("cosim",))
     return parts
+
+
+def open_handle_force(params: Any) -> dict[str, float]:
+    """Rendered handle force at the open stop, N: the return spring alone, from the chain.
+
+    Parameters
+    ----------
+    params : ControllerParams
+        Its chain (spring preload N, rate N/mm, ``L3`` mm) and ``render_spring``.
+
+    Returns
+    -------
+    dict
+        ``force_N`` (``F0 |du/dtheta| / L3`` at ``theta_open``; 0 without ``render_spring``),
+        ``preload_N``, ``rod_mm_per_rad`` (``|du/dtheta|``), ``L3_mm``, ``theta_open_deg``.
+    """
+    from grasprom.chain import kinematics as kin
+
+    ch = params.chain_params
+    f = float(kin.spring_handle_force_N(ch.theta_open_deg, ch)) if params.render_spring else 0.0
+    rod = kin.seed_comparison(ch)["open"]["rod_mm_per_rad"]
+    return {"force_N": f, "preload_N": ch.spring_preload_N, "rod_mm_per_rad": rod,
+            "L3_mm": ch.L3_mm, "theta_open_deg": ch.theta_open_deg}  # fmt: skip
+
+
+def open_handle_explanation(params: Any, cs: CosimResult) -> str:
+    """Why the rendered handle force is not zero with the handle open (the return spring)."""
+    o = open_handle_force(params)
+    at_open = cs.col("theta_deg") >= o["theta_open_deg"] - 1e-9
+    seen = cs.col("force_handle_N")[at_open]
+    measured = f"{seen[0]:.2f} N" if seen.size else "n/a"
+    if o["force_N"] == 0.0:
+        return (f"With the handle open the rendered handle force is {measured}: the return "
+                "spring is not rendered (render_spring off).")  # fmt: skip
+    return (
+        f"With the handle at its open stop (theta = {o['theta_open_deg']:g} deg: before the "
+        f"hand closes it and after it lets go) the rendered handle force is "
+        f"{o['force_N']:.2f} N (co-simulated: {measured}): the rendered return spring of the "
+        f"instrument, its preload F0 = {o['preload_N']:g} N on the rod reflected to the grip "
+        f"by virtual work, F0 |du/dtheta| / L3 = {o['preload_N']:g} N x "
+        f"{o['rod_mm_per_rad']:.2f} mm/rad / {o['L3_mm']:g} mm = {o['force_N']:.2f} N. The "
+        "hand has to exceed it before the handle moves, and it returns the handle to the open "
+        "stop on release."
+    )
+
+
+def profile_explanation() -> str:
+    """The grasp profile of the co-simulation, what ``--fast`` changes, and the example."""
+    from grasprom.pipeline.cosim import FAST_REST_S, GRASP_PROFILE_S
+
+    ramp, hold, release, rest = GRASP_PROFILE_S
+    return (
+        f"Grasp profile: ramp {ramp:g} s, hold {hold:g} s, release {release:g} s, rest "
+        f"{rest:g} s; --fast only shortens the rest to {FAST_REST_S:g} s (the handle is back at "
+        "its open stop before the release ends), so the figures above are the same with and "
+        "without --fast. examples/fmu_cosim.py runs this co-simulation (same tuning, device, "
+        "hand and profile, FMI 2 or 3) and prints the same figures."
+    )
 
 
 def _arduino_section(res: BuildResult) -> list[str]:
@@ -435,7 +548,7 @@ def write_build_json(res: BuildResult, prov: dict[str, Any]) -> Path:
     path = out / "build.json"
     path.write_text(json.dumps(
         {"format": "grasprom-build", "format_version": 1, "provenance": prov,
-         "results": results(res),
+         "results": results(res), "headline": headline_rows(res),
          "figures": {k: str(p.relative_to(out)) for k, p in res.figures.items()},
          "files": {k: str(p.relative_to(out)) for k, p in res.files.items()}},
         indent=2, default=str))  # fmt: skip
@@ -454,11 +567,40 @@ def summary(res: BuildResult) -> str:
 
 
 def _headline_section(res: BuildResult) -> list[str]:
-    """The results first: :func:`headline` as a list at the top of the report."""
-    items = headline(res)
-    if not items:
+    """The results first: what was built, then :func:`headline_rows` with PASS / FAIL."""
+    items = built_items(res)
+    rows = headline_rows(res)
+    if not items and not rows:
         return []
-    return ["<h2>Results at a glance</h2>" + _list([html.escape(x) for x in items])]
+    parts = ["<h2>Results at a glance</h2>"]
+    if items:
+        parts.append("<p>Built:</p>" + _list(items))
+    if rows:
+        parts.append(_headline_table(rows))
+        n = {v: sum(r["verdict"] == v for r in rows) for v in (PASS, FAIL)}
+        parts.append(f"<p>{n[PASS]} of {len(rows)} targets met, {n[FAIL]} missed"
+                     f"{'' if n[PASS] + n[FAIL] == len(rows) else '; n/a: not measured'}"
+                     ". Each target is the project's own constant, named in the last column."
+                     "</p>")  # fmt: skip
+    return parts
+
+
+def _headline_table(rows: Sequence[dict[str, Any]]) -> str:
+    """HTML of the headline rows: figure, measured, target, verdict (coloured), source."""
+    head = "".join(f"<th>{h}</th>" for h in ("figure", "measured", "target", "verdict",
+                                               "target stated in"))  # fmt: skip
+    body = []
+    for r in rows:
+        cls = {PASS: "pass", FAIL: "fail"}.get(r["verdict"], "")
+        unit = f" {r['unit']}" if r["unit"] else ""
+        val = "not measured" if r["value"] is None else f"{_fmt(r['value'], '.4g')}{unit}"
+        body.append(
+            f"<tr><td class='text'>{html.escape(r['figure'])}</td><td>{html.escape(val)}</td>"
+            f"<td>{html.escape(r['sense'])} {r['limit']:g}{html.escape(unit)}</td>"
+            f"<td class='{cls}'><b>{r['verdict']}</b></td>"
+            f"<td class='text'>{html.escape(r['source'])}</td></tr>"
+        )
+    return f"<table class='headline'><tr>{head}</tr>{''.join(body)}</table>"
 
 
 def headline(res: BuildResult) -> list[str]:

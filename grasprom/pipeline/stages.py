@@ -59,6 +59,11 @@ def _stage_surrogate(opts: BuildOptions, res: BuildResult, out: Path, figs: Path
     res.figures["surrogate"] = plot_surrogate(
         s, figs / "surrogate.png", res.holdout_dir if res.holdout_dir is not None else fe
     )
+    from grasprom.surrogate import plot_residuals
+
+    res.figures["residuals"] = plot_residuals(
+        s, figs / "surrogate_residuals.png", res.holdout_dir if res.holdout_dir is not None else fe
+    )
 
 
 def _stage_tune(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) -> None:

@@ -59,7 +59,7 @@ from grasprom.surrogate.fileformat import (
     SurrogateWriteError,
     check_content,
 )
-from grasprom.surrogate.plots import plot_surrogate
+from grasprom.surrogate.plots import plot_residuals, plot_surrogate, surrogate_residuals
 from grasprom.surrogate.spline import SplineTable
 from grasprom.surrogate.table import Surrogate, clamp_thickness, load_surrogate
 from grasprom.surrogate.validation import (
@@ -105,8 +105,10 @@ __all__ = [
     "leave_one_out",
     "load_surrogate",
     "pchip_derivatives",
+    "plot_residuals",
     "plot_surrogate",
     "read_fe_cases",
     "reduce_case",
     "select_nodes",
+    "surrogate_residuals",
 ]

@@ -148,3 +148,130 @@ def _label_column(column: Sequence[Any], s: Surrogate, m: str) -> None:
     ax.set_ylabel("stiffness (N/mm)")
     for a in column:
         a.grid(True, alpha=0.3, which="both")
+
+
+def surrogate_residuals(s: Surrogate, cases: Sequence[FECase]) -> list[dict[str, Any]]:
+    """Surrogate minus FE force at every FE point of ``cases`` (the data of the residual plot).
+
+    Parameters
+    ----------
+    s : Surrogate
+    cases : sequence of FECase
+        FE cases of materials of ``s`` inside its thickness range (others are skipped).
+
+    Returns
+    -------
+    list of dict
+        One per case: ``stem``, ``material``, ``thickness_mm``, ``gap_mm`` (the FE gaps),
+        ``residual_N`` (``s.force(gap) - F_FE``, N), ``residual_pct`` (of the haptic scale
+        ``s.params.force_ref_N``), ``haptic`` (first touch to the first load step at which the
+        FE force reaches ``force_ref_N``) and ``steep`` (FE point stiffness at least
+        ``s.params.steep_N_per_mm``, where the error figures judge the gap, not the force).
+    """
+    out = []
+    for c in cases:
+        if c.material not in s.materials:
+            continue
+        lo, hi = s.thickness_range(c.material)
+        if not lo <= c.thickness_mm <= hi:
+            continue
+        res = s.force(c.gap_mm, c.thickness_mm, c.material) - c.force_N
+        reach = np.flatnonzero(c.force_N >= s.params.force_ref_N)
+        haptic = np.arange(c.gap_mm.size) <= (reach[0] if reach.size else c.gap_mm.size)
+        steep = fe_point_stiffness(c.gap_mm, c.force_N) >= s.params.steep_N_per_mm
+        out.append({"stem": c.stem, "material": c.material, "thickness_mm": c.thickness_mm,
+                    "gap_mm": c.gap_mm, "residual_N": res,
+                    "residual_pct": 100.0 * res / s.params.force_ref_N, "haptic": haptic,
+                    "steep": steep})  # fmt: skip
+    return out
+
+
+def plot_residuals(
+    s: Surrogate, path: str | os.PathLike[str], fe_dir: str | os.PathLike[str]
+) -> Path:
+    """Residual plot surrogate - FE at the FE points of ``fe_dir`` (PNG), per material.
+
+    Top row: ``F_surrogate - F_FE`` in N over the jaw gap (symlog force axis, log gap axis).
+    Bottom row: the same in % of the haptic scale over the haptic range (first touch to the
+    FE force ``force_ref_N``), with the 3 % target band; points where the FE is steeper than
+    ``steep_N_per_mm`` are crosses (the error table judges them by the gap error at equal
+    force).  Colours by thickness; each line's ``gid`` is ``"<stem> N"`` or ``"<stem> %"``.
+
+    Parameters
+    ----------
+    s : Surrogate
+    path : str or os.PathLike
+        PNG file to write.
+    fe_dir : str or os.PathLike
+        FE cases to compare with (held-out cases when available).
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cases, _ = read_fe_cases(fe_dir)
+    fig = residual_figure(s, surrogate_residuals(s, cases), f"Surrogate - FE ({fe_dir})")
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    return out
+
+
+def residual_figure(s: Surrogate, rows: Sequence[dict[str, Any]], title: str) -> Any:
+    """The figure of :func:`plot_residuals` from :func:`surrogate_residuals` rows."""
+    import matplotlib
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from grasprom.surrogate.validation import CHECK_TOLERANCE
+
+    mats = [m for m in s.materials if any(r["material"] == m for r in rows)] or list(s.materials)
+    fig = Figure(figsize=(4.6 * len(mats), 7.0))
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(2, len(mats), squeeze=False)
+    cmap = matplotlib.colormaps["viridis"]
+    tol = CHECK_TOLERANCE["force_max_pct"]
+    for col, m in enumerate(mats):
+        lo, hi = s.thickness_range(m)
+        top, bottom = axes[0, col], axes[1, col]
+        for r in (r for r in rows if r["material"] == m):
+            c = _thickness_colour(cmap, r["thickness_mm"], lo, hi)
+            g, hap, st = r["gap_mm"], r["haptic"], r["steep"]
+            top.plot(g, r["residual_N"], "o-", ms=2.5, lw=0.6, mfc="none", color=c,
+                     label=f"{r['thickness_mm']:.2f} mm", gid=f"{r['stem']} N")  # fmt: skip
+            keep = hap & ~st
+            bottom.plot(g[keep], r["residual_pct"][keep], "o", ms=2.5, mfc="none", color=c,
+                        gid=f"{r['stem']} %")  # fmt: skip
+            bottom.plot(g[hap & st], r["residual_pct"][hap & st], "x", ms=3, color=c)
+        _label_residual_column(top, bottom, s, m, tol)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def _label_residual_column(top: Any, bottom: Any, s: Surrogate, m: str, tol: float) -> None:
+    """Scales, target band, titles and labels of the two residual panels of material ``m``."""
+    top.set_xscale("log")
+    top.set_yscale("symlog", linthresh=0.01)
+    top.axhline(0.0, color="k", lw=0.6)
+    top.set_title(f"{material_label(m)}: surrogate - FE", fontsize=9)
+    top.set_xlabel("jaw gap (mm)")
+    top.set_ylabel("force residual (N)")
+    top.legend(fontsize=6, title="thickness", title_fontsize=6)
+    bottom.set_xscale("log")
+    bottom.axhspan(-tol, tol, color="C2", alpha=0.15, label=f"target +-{tol:g} %")
+    bottom.axhline(0.0, color="k", lw=0.6)
+    bottom.set_title(f"haptic range, % of {s.params.force_ref_N:g} N (x: steep, judged by gap)",
+                     fontsize=8)  # fmt: skip
+    bottom.set_xlabel("jaw gap (mm)")
+    bottom.set_ylabel("force residual (% of the haptic scale)")
+    bottom.legend(fontsize=6)
+    from matplotlib.ticker import FixedLocator, NullFormatter, ScalarFormatter
+
+    for a in (top, bottom):
+        a.xaxis.set_major_locator(FixedLocator([1, 2, 3, 5, 10, 20, 30]))
+        a.xaxis.set_major_formatter(ScalarFormatter())
+        a.xaxis.set_minor_formatter(NullFormatter())
+        a.grid(True, alpha=0.3, which="both")

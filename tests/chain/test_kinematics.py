@@ -305,6 +305,30 @@ def test_plot_transmission(tmp_path):
     assert out.exists() and out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_seed_comparison_explains_the_gap():
+    """Issue 16 item 6: the seed 003 curve of the transmission figure sits 5-8x below the
+    derived chain because eq (2) moves the rod by L1 per radian; the true rod travel per radian,
+    measured here by a central difference of the rod stroke, is a few mm, and
+    derived / seed = 1 / (sin(mu) cos(theta / 2)) with mu the crank-link angle."""
+    c = kin.seed_comparison(P)
+    for key, th in (("open", P.theta_open_deg), ("closed", P.theta_closed_deg)):
+        r = c[key]
+        assert r["derived_over_seed"] == pytest.approx(
+            kin.transmission_ratio(th, P) / kin.seed_transmission_ratio(th, P), rel=1e-12
+        )
+        h = 1e-4  # deg, one-sided at the end stops
+        sgn = -1.0 if key == "open" else 1.0
+        du = (kin.spring_dx_mm(th + sgn * h, P) - kin.spring_dx_mm(th, P)) / math.radians(h)
+        assert r["rod_mm_per_rad"] == pytest.approx(abs(du), rel=1e-4)
+        assert r["rod_mm_per_rad"] < 0.25 * P.L1_mm  # the rod moves far less than L1
+        mu = math.radians(r["mu_deg"])
+        assert r["derived_over_seed"] == pytest.approx(
+            1.0 / (math.sin(mu) * math.cos(math.radians(th) / 2)), rel=1e-9
+        )
+    assert 7.0 < c["open"]["derived_over_seed"] < 8.0
+    assert 5.0 < c["closed"]["derived_over_seed"] < 5.5
+
+
 def test_example_script_runs(tmp_path, python, subprocess_env):
     res = subprocess.run(
         [python, str(ROOT / "examples" / "kinematics_fg_fi.py"), "--out", str(tmp_path)],

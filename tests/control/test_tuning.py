@@ -484,3 +484,32 @@ def test_cli_tune_augmented(sur, tmp_path, capsys):
     assert au["file"] == str(tmp_path / "aug.json") and len(au["sha256"]) == 64
     assert au["measurement"]["delay_s"] == 0.02
     assert d["tuning"]["simulation"]["chosen"]["growing"] is False
+
+
+def test_zwidth_operating_points_are_distinguishable(tuned):
+    """Issue 16 item 6: every operating point has the chosen B, so on the (B, K) plane they are
+    one vertical line; the figure's second panel gives each case (material, thickness) its own
+    column, with that case's rendered K over the stroke and its maximum marked."""
+    from grasprom.control.plots import zwidth_figure
+
+    fig = zwidth_figure(tuned)
+    plane, cases = fig.axes[0], fig.axes[1]
+    by_gid = {ln.get_gid(): ln for ln in cases.get_lines() if ln.get_gid()}
+    xs = {}
+    for o in tuned.points:
+        gid = f"{o.material} {o.thickness_mm:g}"
+        ln = by_gid[gid]
+        x = np.unique(ln.get_xdata())
+        assert x.size == 1, gid  # one column per case
+        xs[gid] = float(x[0])
+        np.testing.assert_array_equal(ln.get_ydata(), o.K_Nm_per_rad)
+        assert by_gid[f"{gid} max"].get_ydata()[0] == pytest.approx(np.max(o.K_Nm_per_rad))
+    assert len(set(xs.values())) == len(tuned.points) > 1  # no two cases share a column
+    # the Z-width plane: the span of every operating point at the chosen B, stiffest marked
+    B = stiffness.virtual_damping_Nms_per_rad(tuned.params)
+    allK = np.concatenate([o.K_Nm_per_rad for o in tuned.points])
+    (seg,) = plane.collections[-1].get_segments()
+    np.testing.assert_allclose(seg[:, 0], B)
+    assert seg[:, 1].max() == pytest.approx(allK.max())
+    labels = [t.get_text() for t in cases.get_xticklabels()]
+    assert len(labels) == len(tuned.points)

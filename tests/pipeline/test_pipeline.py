@@ -9,6 +9,7 @@ otherwise), and the report exists, embeds and names every figure.
 from __future__ import annotations
 
 import json
+import math
 import os
 import shutil
 import subprocess
@@ -20,8 +21,9 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 CI = os.environ.get("CI") == "true"
-FIGURES = ("fe_sweep.png", "surrogate.png", "transmission.png", "stiffness_vs_theta.png",
-           "zwidth.png", "bode_impedance.png", "transparency.png", "cosim.png")  # fmt: skip
+FIGURES = ("fe_sweep.png", "surrogate.png", "surrogate_residuals.png", "transmission.png",
+           "stiffness_vs_theta.png", "zwidth.png", "bode_impedance.png", "transparency.png",
+           "cosim.png")  # fmt: skip
 
 
 def _env() -> dict[str, str]:
@@ -180,6 +182,151 @@ def test_report_names_and_embeds_figures(built):
     # 20 N haptic scale at the t = 1.5 mm case, mr/nh 0.6 % (`grasprom surrogate check`); the
     # 3 % budget holds on the 2D data at 0.1 mm spacing (tests/surrogate)
     assert meta["results"]["surrogate"]["haptic_error"]["holdout"]["force_max_pct"] < 6
+
+
+def _glance(html: str) -> str:
+    first = html.index("Results at a glance")
+    return html[first : html.index("<h2>", first + 10)]
+
+
+def _text(fragment: str) -> str:
+    """Plain text of an HTML fragment (tags dropped, entities unescaped)."""
+    import html as _html
+    import re
+
+    return _html.unescape(re.sub(r"<[^>]+>", " ", fragment))
+
+
+def test_headline_table_verdicts_follow_the_numbers(built):
+    """Issue 16 item 6: the report leads with a table of every figure that has a stated
+    target, PASS / FAIL recomputed here from build.json's results and the targets' constants."""
+    import re
+
+    from grasprom.export import CYCLE_BUDGET, ERROR_BUDGET, FLASH_BUDGET_B, RAM_BUDGET_B
+    from grasprom.pipeline.cosim import OVERSHOOT_TARGET
+    from grasprom.surrogate import CHECK_TOLERANCE
+
+    out, _ = built
+    meta = json.loads((out / "build.json").read_text())
+    r = meta["results"]
+    tuning = json.loads((out / "controller.json").read_text())["tuning"]
+    ho = r["surrogate"]["haptic_error"]["holdout"]
+    a, cs = r["arduino"], r["cosim"]
+    want = {  # figure prefix -> (value, limit, at most?)
+        "surrogate: held-out haptic force error": (ho["force_max_pct"],
+                                                   CHECK_TOLERANCE["force_max_pct"], True),
+        "surrogate: held-out gap error": (ho["gap_max_mm"], CHECK_TOLERANCE["gap_max_mm"], True),
+        "controller: passivity margin": (tuning["passivity_margin"], tuning["safety_factor"],
+                                         False),
+        "closed loop with the hand": (
+            tuning["operating_margins"]["worst"]["damping_ratio_min"], 0.3, False),
+        "arduino: flash": (a["flash_B"], FLASH_BUDGET_B, True),
+        "arduino: RAM": (a["ram_B"], RAM_BUDGET_B, True),
+        "arduino: cycles": (a["cycles_max"], CYCLE_BUDGET, True),
+        "arduino: handle-force error": (a["error_handle_pct_rendered"], 100 * ERROR_BUDGET,
+                                        True),
+        "co-simulation: FMU vs Python": (cs["max_torque_diff_vs_python_Nm"], 1e-9, True),
+        "co-simulation: rendered handle-force overshoot": (
+            100 * cs["settling"]["overshoot"], 100 * OVERSHOOT_TARGET, True),
+    }  # fmt: skip
+    rows = meta["headline"]
+    assert len(rows) == len(want)
+    html = (out / "report.html").read_text()
+    table = _glance(html)
+    cells = [re.findall(r"<td[^>]*>(.*?)</td>", tr) for tr in table.split("<tr>")[2:]]
+    assert len(cells) == len(rows)
+    for row, tr in zip(rows, cells):
+        (key,) = [k for k in want if row["figure"].startswith(k)]
+        value, limit, at_most = want[key]
+        expect = "n/a" if value is None else (
+            "PASS" if (value <= limit if at_most else value >= limit) else "FAIL")  # fmt: skip
+        assert row["verdict"] == expect, (key, value, limit)
+        assert row["limit"] == pytest.approx(limit) and row["value"] == value
+        assert _text(tr[0]).strip() == row["figure"] and expect in tr[3], (key, tr)
+    # --fast: the simavr cycles and the host error run are skipped, so those rows are n/a
+    assert a["cycles_max"] is None and "not measured" in table
+    assert "FAIL" in table  # the shipped 3D surrogate misses the 3 % target (le)
+    assert html.index("Results at a glance") < html.index("FE data and surrogate")
+
+
+def test_report_explains_transmission_and_open_handle_force(built):
+    """Issue 16 item 6: the seed-vs-derived gap of the transmission figure and the open-handle
+    force of the co-simulation are explained with numbers from the chain; the tuning text is
+    wrapped."""
+    import re
+
+    from grasprom.chain import kinematics as kin
+    from grasprom.control import load_params
+
+    out, _ = built
+    html = (out / "report.html").read_text()
+    chain = load_params(out / "controller.json").chain_params
+    chain_text = _text(html[html.index("<h2>Kinematic chain") : html.index("<h2>Controller")])
+    ratio = kin.transmission_ratio(22.0, chain) / kin.seed_transmission_ratio(22.0, chain)
+    assert f"{ratio:.1f}x below the derived chain" in chain_text
+    assert "Not a bug" in chain_text
+    # open-handle force: preload x rod travel per radian / L3, the rod travel by a difference
+    h = 1e-4
+    du = (kin.spring_dx_mm(chain.theta_open_deg - h, chain) - 0.0) / math.radians(h)
+    f_open = chain.spring_preload_N * du / chain.L3_mm
+    cosim = _text(html[html.index("<h2>Co-simulated") : html.index("<h2>Arduino")])
+    m = re.search(r"the rendered handle force is ([\d.]+) N \(co-simulated: ([\d.]+) N\)", cosim)
+    assert m, cosim
+    assert float(m.group(1)) == pytest.approx(f_open, abs=0.006)
+    data = np.genfromtxt(out / "cosim.csv", delimiter=",", names=True)
+    assert data["theta_deg"][0] == pytest.approx(chain.theta_open_deg)
+    assert float(m.group(2)) == pytest.approx(data["force_handle_N"][0], abs=0.006)
+    assert data["force_handle_N"][0] == pytest.approx(f_open, rel=1e-3)
+    assert f"F0 = {chain.spring_preload_N:g} N" in cosim
+    assert "--fast only shortens the rest" in cosim
+    # the tuning report wraps instead of running off the right edge
+    assert "pre.wrap{white-space:pre-wrap" in html and "<pre class='wrap'>grasprom tune:" in html
+
+
+def test_fast_cosim_reports_the_full_runs_figures(built):
+    """Issue 16 item 8: --fast shortened the ramp and hold (max jaw force 1.04 vs 0.98 N); now it
+    only shortens the rest after the release, and the co-simulation is the full run's."""
+    from grasprom.control import DeviceParams, HandParams, load_params
+    from grasprom.pipeline import cosimulate
+    from grasprom.pipeline.cosim import grasp_profile
+    from grasprom.surrogate import Surrogate
+
+    out, _ = built
+    p, s = load_params(out / "controller.json"), Surrogate.load(out / "surrogate.json")
+    full = cosimulate(out / "GraspController.fmu", p, s, DeviceParams(), HandParams())
+    fast = np.genfromtxt(out / "cosim.csv", delimiter=",", skip_header=1)
+    assert grasp_profile(True)[:3] == grasp_profile(False)[:3]
+    assert len(fast) < len(full.data)
+    np.testing.assert_allclose(fast, full.data[: len(fast)], rtol=1e-8, atol=0)  # CSV: %.9g
+    cs = json.loads((out / "build.json").read_text())["results"]["cosim"]
+    assert cs["max_force_jaw_N"] == full.col("force_jaw_N").max()
+    assert cs["min_theta_deg"] == full.col("theta_deg").min()
+
+
+def test_fmu_example_agrees_with_the_build(built, tmp_path):
+    """Issue 16 item 8: examples/fmu_cosim.py (tuning as the build does, FMI 2; or a build's
+    controller.json, FMI 3) co-simulates the build's grasp: the same rows as cosim.csv."""
+    import re
+
+    out, _ = built
+    ref = np.genfromtxt(out / "cosim.csv", delimiter=",", names=True)
+    cs = json.loads((out / "build.json").read_text())["results"]["cosim"]
+    for extra in (["--fast"], ["--fast", "--fmi", "3", "--controller",
+                               str(out / "controller.json")]):  # fmt: skip
+        ex = tmp_path / "_".join(extra[1:3]) if len(extra) > 1 else tmp_path / "fmi2"
+        res = subprocess.run(
+            [sys.executable, str(ROOT / "examples" / "fmu_cosim.py"), "--out", str(ex), *extra],
+            capture_output=True, text=True, env=_env(), cwd=tmp_path, timeout=180,
+        )  # fmt: skip
+        assert res.returncode == 0, res.stdout + res.stderr
+        got = np.genfromtxt(ex / "fmu_cosim.csv", delimiter=",", names=True)
+        assert got.dtype.names == ref.dtype.names
+        for name in ref.dtype.names:
+            np.testing.assert_array_equal(got[name], ref[name], err_msg=f"{extra} {name}")
+        m = re.search(r"min handle angle ([\d.]+) deg, max jaw force ([\d.]+) N", res.stdout)
+        assert m, res.stdout
+        assert float(m.group(1)) == pytest.approx(cs["min_theta_deg"], abs=0.006)
+        assert float(m.group(2)) == pytest.approx(cs["max_force_jaw_N"], abs=0.006)
 
 
 def test_bad_fe_dir_names_the_stage(tmp_path):

@@ -307,3 +307,38 @@ def test_cli_build_check_plot(tmp_path, capsys):
     bad.write_text("[]")
     assert main(["surrogate", "check", str(bad), "--fe", str(HOLDOUT)]) == 2
     assert "bad.json" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- residual plot
+
+
+def test_residual_plot_is_surrogate_minus_fe(sur, tmp_path):
+    """Issue 16 item 6: the residual figure plots surrogate - FE at the FE points of the
+    held-out cases; recomputed here from the raw CSVs (gap_mm, force_N columns) and the
+    surrogate's force, independently of read_fe_cases and surrogate_residuals."""
+    import re
+
+    from grasprom.surrogate import plot_residuals, read_fe_cases, surrogate_residuals
+    from grasprom.surrogate.plots import residual_figure
+
+    png = plot_residuals(sur, tmp_path / "figs" / "res.png", HOLDOUT)
+    assert png.stat().st_size > 10_000
+    fig = residual_figure(sur, surrogate_residuals(sur, read_fe_cases(HOLDOUT)[0]), "t")
+    lines = {ln.get_gid(): ln for ax in fig.axes for ln in ax.get_lines() if ln.get_gid()}
+    csvs = sorted(HOLDOUT.glob("*.csv"))
+    assert len(csvs) >= 3
+    for csv in csvs:
+        m = re.fullmatch(r"(mr|nh|le)_t(\d+\.\d+)", csv.stem)
+        assert m, csv.name
+        mat, t = m.group(1), float(m.group(2))
+        tab = np.genfromtxt(csv, delimiter=",", names=True)
+        g, f = tab["gap_mm"], tab["force_N"]
+        want = np.array([sur.force_scalar(x, t, mat) for x in g]) - f
+        line = lines[f"{csv.stem} N"]
+        np.testing.assert_allclose(line.get_xdata(), g, rtol=0, atol=0)
+        np.testing.assert_allclose(line.get_ydata(), want, rtol=1e-9, atol=1e-9)
+        # the % panel: the same residual over the 20 N haptic scale, at non-steep points
+        pct = lines[f"{csv.stem} %"]
+        on = np.isin(g, pct.get_xdata())
+        np.testing.assert_allclose(pct.get_ydata(), 100.0 * want[on] / 20.0, atol=1e-7)
+        assert 0 < on.sum() < g.size  # the haptic range, not the whole stroke
