@@ -43,7 +43,7 @@ STAGES = [
 # (script, arguments after --out DIR, what the page says about the mode)
 EXAMPLES = [
     ("kinematics_fg_fi.py", [], "full run"),
-    ("fmu_cosim.py", ["--fast"], "fast mode: a shorter grasp"),
+    ("fmu_cosim.py", ["--fast"], "fast mode: a shorter rest after the release, same figures"),
     ("tune_controller.py", [], "full run, about 10 s"),
     ("arduino_export.py", ["--fast"], "fast mode: the package without the budget measurement"),
     ("diagnose_gap.py", [], "full run, synthetic trials with mechanism friction withheld"),

@@ -3,8 +3,8 @@
 Each fenced ``bash`` block of README.md and of the docs pages (in the site's navigation order)
 is run with ``bash -euo pipefail`` in one scratch copy of the checkout, block after block, so a
 later block may use what an earlier one wrote (``build/`` of the main job, ``trials/`` of
-``grasprom synth``). A block fails the test when it exits non-zero. Three documented rules keep
-the run inside the suite's budget; they are the only changes made to a command:
+``grasprom synth``). A block fails the test when it exits non-zero. Four documented rules are
+the only changes made to a command (the first three keep the run inside the suite's budget):
 
 * ``pip install ...`` runs as ``pip install --dry-run --no-deps ...`` (it must resolve; it must
   not replace the environment under test -- the real installs are run in a fresh virtual
@@ -12,7 +12,9 @@ the run inside the suite's budget; they are the only changes made to a command:
 * ``python -m pytest ...`` runs with ``--collect-only`` (running the suite from inside itself
   would recurse);
 * a long command may carry a trailing comment ``# quick check: ARGS``: the test appends ARGS
-  (later options win in argparse), the reader sees the same quick variant next to the command.
+  (later options win in argparse), the reader sees the same quick variant next to the command;
+* a command documented to fail carries ``# expect exit N``: it must exit with exactly N (the
+  page explains why), so the page changes when the behaviour does.
 
 Lines ending in ``&`` (a Dask scheduler and worker) run in the background; the block's whole
 process group is killed when it ends. Marked ``slow`` (a few minutes): CI runs it in its second
@@ -34,6 +36,7 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 QUICK = re.compile(r"#\s*quick check:\s*(.+)$")
+EXPECT = re.compile(r"#\s*expect exit (\d+)\b.*$")
 
 
 def nav_pages() -> list[Path]:
@@ -61,6 +64,10 @@ def bash_blocks(page: Path) -> list[str]:
 
 def as_run(line: str) -> str:
     """One command line as the test runs it (the three rules of the module docstring)."""
+    expect = EXPECT.search(line)
+    if expect:
+        cmd = as_run(line[: expect.start()].rstrip())
+        return f'{{ {cmd}; }} && rc=0 || rc=$?; test "$rc" -eq {expect.group(1)}'
     quick = QUICK.search(line)
     if quick:
         line = line[: quick.start()].rstrip() + " " + quick.group(1).strip()
@@ -121,6 +128,9 @@ def test_the_rules_rewrite_only_what_they_say():
     )
     assert as_run("grasprom sweep --out x   # quick check: --n-circ 8") == (
         "grasprom sweep --out x --n-circ 8"
+    )
+    assert as_run("grasprom surrogate check s.json   # expect exit 1") == (
+        '{ grasprom surrogate check s.json; } && rc=0 || rc=$?; test "$rc" -eq 1'
     )
     plain = "grasprom build --out build  # a comment"
     assert as_run(plain) == plain
