@@ -1,8 +1,8 @@
 """Grasper kinematic chain: table of gap and force transmission vs handle angle, and the plot.
 
 Prints theta, jaw gap, gap slope, rod stroke, link angle beta, Fg/Fi of the derived chain and of
-seed 003's eqs (1)-(4), and the finger force the return spring alone needs; writes
-``kinematics_fg_fi.png`` (Fg/Fi in percent vs theta, seed 003 Fig. 6) into ``--out``.
+Guachi et al.'s (2020) eqs (1)-(4), and the finger force the return spring alone needs; writes
+``kinematics_fg_fi.png`` (Fg/Fi in percent vs theta, Guachi et al. (2020) Fig. 6) into ``--out``.
 
     python examples/kinematics_fg_fi.py --out /tmp/kin
 """
@@ -56,7 +56,7 @@ def main(argv: list[str] | None = None) -> int:
     i = int(np.argmax(np.abs(dev)))
     print(
         f"Fg/Fi derived: {100 * r[-1]:.1f} % (open) -> {100 * r[0]:.1f} % (closed); "
-        f"seed formula deviation: max {100 * dev[i]:.1f} % at theta = {dense[i]:.2f} deg"
+        f"paper's formula deviation: max {100 * dev[i]:.1f} % at theta = {dense[i]:.2f} deg"
     )
     out = kin.plot_transmission(p, args.out / "kinematics_fg_fi.png")
     print(f"wrote {out}")

@@ -1,6 +1,6 @@
 r"""Kinematic chain of the grasper: handle angle -> jaw gap, and handle force <-> jaw force.
 
-Seed 003 (Guachi et al., section 3, eqs (1)-(4), Table 1, Fig. 2) describes the instrument as a
+Guachi et al. (2020, section 3, eqs (1)-(4), Table 1, Fig. 2) describes the instrument as a
 handle lever, a crank-and-link (slider-crank) driving the push rod, a return spring on the rod and
 a cam that turns the rod stroke into the jaw rotation:
 
@@ -13,7 +13,7 @@ a cam that turns the rod stroke into the jaw rotation:
 
 This module builds that chain from its geometry (positions of the linkage points as functions of
 the handle angle) and gets the forces from virtual work, so that the chain is exactly
-energy-conserving; the seed's closed-form eq (2) is kept as :func:`seed_jaw_force_N` for
+energy-conserving; the paper's closed-form eq (2) is kept as :func:`seed_jaw_force_N` for
 comparison.
 
 Geometry (all lengths mm, angles in degrees at the public API, radians inside)
@@ -27,13 +27,13 @@ Geometry (all lengths mm, angles in degrees at the public API, radians inside)
   ``B`` by the link ``BC`` (length ``L2``).  The link angle to the rod axis is then exactly
   eq (3): ``sin(beta) = (y_B - d) / L2``; ``x_C = x_B + side * L2 cos(beta)`` with ``side = -1``
   when the slider lies on the pivot side of ``B`` ("behind", the default) and ``+1`` beyond it.
-* Sign convention: ``theta`` is the handle angle of seed 003, ``theta_open_deg`` (22 deg,
-  Table 1's theta_initial) with the handle released and the jaws open, decreasing to
+* Sign convention: ``theta`` is the handle angle of Guachi et al. (2020), ``theta_open_deg``
+  (22 deg, Table 1's theta_initial) with the handle released and the jaws open, decreasing to
   ``theta_closed_deg`` (0 deg) with the handle squeezed and the jaws at the closed height.
   Closing = ``theta`` decreasing.  ``Fi > 0`` squeezes the handle (closes), ``Fg > 0`` is the
   clamping force on one jaw (the force the tissue pushes back with, as in the FE data).
 * Rod stroke ``u(theta) = |x_C(theta) - x_C(theta_open)|`` (mm, 0 open, ``u_max`` closed): this
-  is seed 003's ``Delta x`` (displacement of ``C(theta)`` from ``C0 = C(22 deg)``).
+  is Guachi et al.'s ``Delta x`` (displacement of ``C(theta)`` from ``C0 = C(22 deg)``).
 * Jaw: a single-acting jaw turned by a straight-slot cam (Scotch yoke): a pin at ``m`` from the
   jaw pivot runs in a slot of the rod end normal to the rod, so ``u = m (sin a_open - sin a)``,
   and the tissue reference point at ``n`` from the jaw pivot sits at ``gap = gap_closed +
@@ -41,7 +41,7 @@ Geometry (all lengths mm, angles in degrees at the public API, radians inside)
   eq (1) ``Fg = F_rod m/n`` is exact.  The endpoints fix ``n/m = (gap_open - gap_closed)/u_max``;
   ``n`` is a choice (it sets the jaw opening angle), ``m`` follows.  A symmetric double-acting
   pair gives the same gap law with ``n`` replaced by ``2n``.
-* Return spring on the rod: force ``F_s = F0 + k u`` resisting closing (seed eq (2)'s
+* Return spring on the rod: force ``F_s = F0 + k u`` resisting closing (eq (2)'s
   ``k Delta x`` plus a preload ``F0``), energy ``E = F0 u + k u^2 / 2`` (N mm = mJ).
 
 Virtual work (frictionless rigid chain)
@@ -54,24 +54,24 @@ With ``g(theta)`` the gap, ``g' = dg/dtheta > 0`` (mm/rad), ``u' = du/dtheta < 0
     \;\Rightarrow\;
     F_i = \frac{F_g g' - F_s u'}{L_3}, \qquad F_g = \frac{F_i L_3 + F_s u'}{g'} .
 
-The transmission ratio is ``Fg/Fi = L3 / g'`` (spring excluded, as in seed 003 Fig. 6).
+The transmission ratio is ``Fg/Fi = L3 / g'`` (spring excluded, as in Guachi et al. (2020) Fig. 6).
 
 Seed formula vs derived chain
 -----------------------------
-Seed eq (2) projects the crank-tip force ``Fi L3 / L1`` with ``cos(phi) cos(beta)``; the exact
+Eq (2) projects the crank-tip force ``Fi L3 / L1`` with ``cos(phi) cos(beta)``; the exact
 rod force is ``Fi L3 cos(beta) / (L1 sin(mu))`` with ``mu`` the crank-link transmission angle,
 i.e. ``Fi L3 / |dx_C/dtheta|``.  With Table 1's lengths and eq (3)'s layout the crank stays
 nearly parallel to the link (``mu`` = 7.6 deg open to 11.0 deg closed), so the rod moves only
-2.9-4.0 mm per radian of handle, not ``L1`` = 21 mm, and the seed formula understates the jaw
-force several times.  With the default parameters (same ``m/n`` in both) the seed's ``Fg/Fi``
+2.9-4.0 mm per radian of handle, not ``L1`` = 21 mm, and the paper formula understates the jaw
+force several times.  With the default parameters (same ``m/n`` in both) the paper's ``Fg/Fi``
 is 81.0-87.0 % below the derived one: the largest deviation, -87.0 %, is at ``theta = 22 deg``
 (open), the smallest, -81.0 % (exactly ``|d|/L1 - 1``), at ``theta = 0`` (closed).  The derived
-ratio falls from 79.3 % (open) to 58.1 % (closed); the seed's rises from 10.3 % to 11.1 %.  The
-spring terms agree exactly (the spring acts along the rod, so seed eq (2)'s ``k Delta x`` is the
+ratio falls from 79.3 % (open) to 58.1 % (closed); the paper's rises from 10.3 % to 11.1 %.  The
+spring terms agree exactly (the spring acts along the rod, so eq (2)'s ``k Delta x`` is the
 exact rod-side spring force, less the preload).  Only the derived chain satisfies virtual work,
 so the controller uses it: a passive haptic rendering needs the handle force to be the exact
 work-conjugate of the handle motion, otherwise the rendered chain creates or destroys energy
-over a closing/opening cycle (and with the seed formula the handle force for a given tissue
+over a closing/opening cycle (and with the paper formula the handle force for a given tissue
 force would be 5-8x too large).  Whatever the linkage details, the mean of ``Fg/Fi`` over
 the stroke is fixed by energy: ``L3 * 22 deg / (gap_open - gap_closed)`` = 68.1 % with the
 defaults (22 deg of handle at 54.1 mm is 20.8 mm of finger travel for 30.5 mm of gap travel).
@@ -115,8 +115,8 @@ __all__ = [
     "xc_mm",
 ]
 
-#: Table 1 of seed 003 (mm, deg).  ``beta_initial = 19 deg`` is not reachable with eq (3) and
-#: these lengths for any offset ``d``: see :attr:`ChainParams.beta_open_deg`.
+#: Table 1 of Guachi et al. (2020) (mm, deg).  ``beta_initial = 19 deg`` is not reachable with
+#: eq (3) and these lengths for any offset ``d``: see :attr:`ChainParams.beta_open_deg`.
 SEED_TABLE1 = {
     "L1_mm": 21.0,
     "L2_mm": 25.1,
@@ -149,7 +149,8 @@ class LinkageConstants(NamedTuple):
 class ChainParams:
     """Geometry and mechanics of the grasper chain (mm, N, N/mm, deg).
 
-    Seed 003 Table 1 gives ``L1``, ``L2``, ``L3``, theta_initial = 22 deg and beta_initial =
+    Guachi et al. (2020) Table 1 gives ``L1``, ``L2``, ``L3``, theta_initial = 22 deg and
+    beta_initial =
     19 deg; everything else is a documented choice.  All fields can be overridden
     (``dataclasses.replace(p, offset_d_mm=-3.0)``); the set is validated on construction
     (``ValueError`` naming the parameter).
@@ -157,7 +158,7 @@ class ChainParams:
     Parameters
     ----------
     L1_mm : float
-        Crank ``OB`` on the handle, mm.  Seed 003 Table 1: 21 mm.
+        Crank ``OB`` on the handle, mm.  Guachi et al. (2020) Table 1: 21 mm.
     L2_mm : float
         Link ``BC`` from the crank tip to the rod end, mm.  Table 1: 25.1 mm.
     L3_mm : float
@@ -167,15 +168,15 @@ class ChainParams:
         Handle angle with the handle released and the jaws fully open, deg.  Table 1's
         theta_initial = 22 deg.  ``C0 = C(theta_open)`` is the spring's reference.
     theta_closed_deg : float
-        Handle angle at full closure (the closed height), deg.  0 deg: seed 003's eq (3) has
+        Handle angle at full closure (the closed height), deg.  0 deg: Guachi et al.'s eq (3) has
         the link parallel to the rod (beta = 0) at theta = 0, and phi = theta/2 "spans
         [0, theta_i/2]" (section 3).
     offset_d_mm : float
-        Offset ``d`` of the crank tip from the rod axis at ``theta = 0`` (eq (3)), mm; the seed
+        Offset ``d`` of the crank tip from the rod axis at ``theta = 0`` (eq (3)), mm; the paper
         does not give it.  Default -4.0 mm: eq (3) at 22 deg is largest at
         ``d = -L1 sin(theta_initial/2) = -4.007 mm`` (the crank then swings symmetrically,
         -11 to +11 deg about the rod direction); -4.0 mm gives beta_open = 18.62 deg, the
-        closest eq (3) gets to Table 1's 19 deg (0.38 deg short, an inconsistency of the seed).
+        closest eq (3) gets to Table 1's 19 deg (0.38 deg short, an inconsistency of the paper).
     slider_side : {"behind", "beyond"}
         Assembly branch of the slider-crank: the rod end ``C`` on the pivot side of ``B``
         ("behind", default; ``x_C = x_B - L2 cos(beta)``) or beyond it.  With ``d = -4 mm`` the
@@ -185,7 +186,7 @@ class ChainParams:
         ``|dx_C/dtheta|`` from 2.93 mm/rad (open) to 4.00 mm/rad (closed).
     n_mm : float
         Jaw lever arm from the jaw pivot to the tissue reference point (where the tube sits and
-        where the gap is measured), mm.  Seed eq (1)'s ``n``; the seed does not give it.
+        where the gap is measured), mm.  Eq (1)'s ``n``; the paper does not give it.
         Default 35 mm: a bowel-grasper jaw long enough for a 30 mm tube; with the single-acting
         slot cam the jaw then opens ``asin((gap_open - gap_closed)/n)`` = 60.6 deg.  Must exceed
         ``gap_open - gap_closed``.
@@ -194,18 +195,18 @@ class ChainParams:
         ``grasprom.fe.model2d.CaseSpec``) fits with 1 mm clearance on each side, so the handle has
         a free stroke before first touch (at :attr:`theta_touch_deg`, 20.3 deg).
     gap_closed_mm : float
-        Jaw gap at ``theta_closed``, mm.  1.5 mm: seed 003's blue staple cartridge closed
+        Jaw gap at ``theta_closed``, mm.  1.5 mm: Guachi et al.'s blue staple cartridge closed
         height, the FE model's ``closed_gap_mm``.
     tube_diameter_mm : float
         Outer diameter of the clamped tube, mm (30, the FE model's ``diameter_mm``); only used
         to check that the open jaws clear it and to locate the first touch.
     spring_k_N_per_mm : float
-        Return-spring rate on the rod, N/mm (seed eq (2)'s ``k``; not given).  Default 10 N/mm.
+        Return-spring rate on the rod, N/mm (eq (2)'s ``k``; not given).  Default 10 N/mm.
     spring_preload_N : float
         Return-spring force at the open position, N (holds the handle open).  Default 10 N.
         With the defaults the empty instrument needs 0.54 N at the finger to start closing and
         1.71 N at full closure: a light return force next to the 65-88 N finger force that a
-        50 N grasp (the colon-damage threshold) needs (design choice, not from the seed).
+        50 N grasp (the colon-damage threshold) needs (design choice, not from the paper).
 
     Notes
     -----
@@ -310,7 +311,7 @@ class ChainParams:
 
     @property
     def m_mm(self) -> float:
-        """Cam arm ``m`` of seed eq (1), mm: ``n * rod_stroke / (gap_open - gap_closed)``.
+        """Cam arm ``m`` of eq (1), mm: ``n * rod_stroke / (gap_open - gap_closed)``.
 
         Not an independent input: with the slot cam, ``gap`` is linear in the rod stroke with
         slope ``n/m``, and the two endpoints (open gap, closed height) fix that slope.
@@ -632,7 +633,8 @@ def _theta_from_gap_scalar(g: float, p: ChainParams) -> float:
 
 
 def beta_deg(theta_deg: ArrayLike, p: ChainParams) -> FloatOrArray:
-    """Link angle beta to the rod axis, deg, from seed 003 eq (3) (also the geometry's angle)."""
+    """Link angle beta to the rod axis, deg, from Guachi et al. (2020) eq (3) (also the geometry's
+    angle)."""
     t = _theta_rad(theta_deg, p)
     d, L1, L2 = p.offset_d_mm, p.L1_mm, p.L2_mm
     if isinstance(t, float):
@@ -663,7 +665,8 @@ def linkage_points_mm(theta_deg: ArrayLike, p: ChainParams) -> LinkagePoints:
 
 
 def spring_dx_mm(theta_deg: ArrayLike, p: ChainParams) -> FloatOrArray:
-    """Rod stroke ``u = |x_C(theta) - x_C(theta_open)|``, mm: seed 003's Delta x (0 when open)."""
+    """Rod stroke ``u = |x_C(theta) - x_C(theta_open)|``, mm: Guachi et al.'s Delta x (0 when
+    open)."""
     (xc, *_), _ = _state(theta_deg, p)
     return _out((p._c.xc_open - xc) * p._c.stroke_sign)
 
@@ -756,7 +759,8 @@ def dhandle_force_dtheta_N_per_rad(
 
 
 def seed_transmission_ratio(theta_deg: ArrayLike, p: ChainParams) -> FloatOrArray:
-    """Seed 003's ``Fg/Fi`` from eqs (1)-(4), spring excluded: ``L3/L1 cos(theta/2) cos(beta) m/n``.
+    """Guachi et al.'s ``Fg/Fi`` from eqs (1)-(4), spring excluded: ``L3/L1 cos(theta/2) cos(beta)
+    m/n``.
 
     For comparison only: it does not conserve energy (see the module docstring).
     """
@@ -768,7 +772,7 @@ def seed_transmission_ratio(theta_deg: ArrayLike, p: ChainParams) -> FloatOrArra
 def seed_jaw_force_N(
     handle_force_N: ArrayLike, theta_deg: ArrayLike, p: ChainParams
 ) -> FloatOrArray:
-    """Jaw force from seed 003 eqs (1)-(4) as printed, N.
+    """Jaw force from Guachi et al. (2020) eqs (1)-(4) as printed, N.
 
     ``Fg = (Fi L3/L1 cos(phi) cos(beta) - k Delta x) m/n`` with ``phi = theta/2``, beta from
     eq (3), ``Delta x`` = :func:`spring_dx_mm`, and this chain's ``m``, ``n`` and ``k`` (the
@@ -780,9 +784,9 @@ def seed_jaw_force_N(
 
 
 def seed_comparison(p: ChainParams) -> dict[str, dict[str, float]]:
-    """Why seed 003's ``Fg/Fi`` sits several times below the derived chain, at both end stops.
+    """Why Guachi et al.'s ``Fg/Fi`` sits several times below the derived chain, at both end stops.
 
-    Seed eq (2) takes the rod force as the crank-tip force ``Fi L3 / L1`` projected with
+    Eq (2) takes the rod force as the crank-tip force ``Fi L3 / L1`` projected with
     ``cos(phi) cos(beta)``.  Virtual work gives the rod force ``Fi L3 / |u'|`` with ``|u'|`` the
     rod travel per radian of handle, ``|u'| = L1 sin(mu) / cos(beta)`` (``mu`` the angle between
     crank and link).  The crank and the link stay nearly in line, so the rod moves only a few
@@ -816,11 +820,11 @@ def seed_comparison(p: ChainParams) -> dict[str, dict[str, float]]:
 
 
 def _seed_note(p: ChainParams) -> str:
-    """Two-line note of the transmission figure: why the seed curve sits below (numbers)."""
+    """Two-line note of the transmission figure: why the paper curve sits below (numbers)."""
     c = seed_comparison(p)
     o, k = c["open"], c["closed"]
     return (
-        f"seed eq (2) moves the rod by L1 = {o['crank_mm']:g} mm per rad; the linkage moves it "
+        f"eq (2) moves the rod by L1 = {o['crank_mm']:g} mm per rad; the linkage moves it "
         f"{o['rod_mm_per_rad']:.2f}-{k['rod_mm_per_rad']:.2f} mm/rad\n"
         f"(crank-link angle {o['mu_deg']:.1f}-{k['mu_deg']:.1f} deg): seed "
         f"{o['derived_over_seed']:.1f}x (open) to {k['derived_over_seed']:.1f}x (closed) below"
@@ -828,7 +832,7 @@ def _seed_note(p: ChainParams) -> str:
 
 
 def plot_transmission(p: ChainParams, path: str | Path, n: int = 221) -> Path:
-    """Plot ``Fg/Fi`` (percent) vs ``theta`` (deg), derived chain and seed formula (Fig. 6).
+    """Plot ``Fg/Fi`` (percent) vs ``theta`` (deg), derived chain and paper's formula (Fig. 6).
 
     Parameters
     ----------
@@ -855,7 +859,7 @@ def plot_transmission(p: ChainParams, path: str | Path, n: int = 221) -> Path:
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
     ax.plot(th, derived, "C0-", lw=2, label="derived chain (virtual work), $L_3/g'(\\theta)$")
-    ax.plot(th, seed, "C3--", lw=2, label="seed 003 eqs (1)-(4) as printed, same m/n")
+    ax.plot(th, seed, "C3--", lw=2, label="Guachi et al. (2020) eqs (1)-(4) as printed, same m/n")
     ax.axvline(p.theta_touch_deg, color="0.6", lw=1, ls=":")
     ax.text(
         p.theta_touch_deg - 0.2,

@@ -46,7 +46,7 @@ class Model3DOptions:
     Parameters
     ----------
     contact : str or None
-        ``stick`` (no sliding once in contact, seed 003's assumption) or ``frictionless``.
+        ``stick`` (no sliding once in contact, Guachi et al.'s assumption) or ``frictionless``.
     friction : float or None
         Coulomb coefficient (only with ``coulomb``, which is refused for now).
     tube_length_mm : float or None

@@ -14,19 +14,21 @@ model (three-field Hu-Washizu with pressure and dilatation condensed per element
 Pister 1985), which removes volumetric locking of the nearly incompressible solids.  For a
 homogeneous deformation ``theta == J`` and ``W`` is the plain strain energy.
 
-Materials (seed 003 for the constants):
+Materials (Guachi et al. (2020) for the constants):
 
-* ``mr`` -- Mooney-Rivlin, C10 = 0.085 MPa, C01 = 0.0565 MPa (seed 003, after Mayeur et al. 2016),
+* ``mr`` -- Mooney-Rivlin, C10 = 0.085 MPa, C01 = 0.0565 MPa (Guachi et al. 2020, after Mayeur et
+  al. 2016),
   decoupled: ``C10 (J^-2/3 I1 - 3) + C01 (J^-4/3 I2 - 3) + U(J)``.
 * ``nh`` -- neo-Hookean with the same small-strain shear modulus mu = 2 (C10 + C01) = 0.283 MPa.
-* ``le`` -- seed 003's "linear elastic" E = 5.18 MPa, given a large-strain form that stays
+* ``le`` -- Guachi et al.'s "linear elastic" E = 5.18 MPa, given a large-strain form that stays
   stable in strong compression and reduces to Hooke's law at small strain: the compressible
   neo-Hookean ``mu/2 (I1 - 3) - mu ln J + lambda/2 (ln J)^2`` with the Lame constants of (E, nu).
   St Venant-Kirchhoff is *not* used: it softens and loses stability in compression.
 
 Nearly incompressible: the seeds give no bulk modulus for the tissue.  We use nu = 0.49
 (kappa / mu = 49.7) for all three: soft tissue is water-saturated and usually modelled with
-nu = 0.45-0.499 (seed 004 uses 0.48; seed 001 uses 0.4 for liver), and 0.49 keeps the tube's
+nu = 0.45-0.499 (Idkaidek and Jasiuk (2015) use 0.48; the liver validation study (2018) uses 0.4
+for liver), and 0.49 keeps the tube's
 volume change below ~1 % while the per-element mean dilatation keeps the solid free of locking.
 The volumetric function for mr/nh is ``U = kappa/4 (theta^2 - 1 - 2 ln theta)`` (convex, infinite
 at theta -> 0, ``kappa/2 (theta-1)^2`` at small strain).
@@ -49,7 +51,7 @@ def material_label(key: str) -> str:
     return f"{key} ({MATERIAL_LABELS[key]})" if key in MATERIAL_LABELS else key
 
 
-#: seed 003 constants
+#: Guachi et al. (2020) constants
 C10_SEED_MPA = 0.085
 C01_SEED_MPA = 0.0565
 E_LE_SEED_MPA = 5.18
@@ -142,14 +144,14 @@ def NeoHookean(mu: float = 2.0 * (C10_SEED_MPA + C01_SEED_MPA), nu: float = NU_D
     """Decoupled neo-Hookean solid, ``mu/2 (J^-2/3 I1 - 3) + U(J)``.
 
     A Mooney-Rivlin solid with ``C10 = mu/2, C01 = 0``; the default ``mu`` (MPa) is the
-    small-strain shear modulus of seed 003's Mooney-Rivlin constants.
+    small-strain shear modulus of Guachi et al.'s Mooney-Rivlin constants.
     """
     return MooneyRivlin(C10=0.5 * mu, C01=0.0, nu=nu, name="nh")
 
 
 @dataclass(frozen=True)
 class CompressibleNeoHookean:
-    """Large-strain form of seed 003's linear elastic material.
+    """Large-strain form of Guachi et al.'s linear elastic material.
 
     ``W = mu/2 (I1 - 3) - mu ln J + lambda/2 (ln theta)^2`` with the Lame constants of
     (E, nu): exactly Hooke's law at small strain, polyconvex-like and stable in compression.
@@ -157,7 +159,7 @@ class CompressibleNeoHookean:
     Parameters
     ----------
     E : float
-        Young's modulus (MPa), seed 003: 5.18.
+        Young's modulus (MPa), Guachi et al. (2020): 5.18.
     nu : float
         Poisson ratio.
     """

@@ -1,12 +1,12 @@
 """Plane-strain FE model of a tube (colon wall) clamped flat between rigid jaws.
 
-Model (seed 003's "CS" cylindrical approximation):
+Model (Guachi et al.'s "CS" cylindrical approximation):
 
 * cross-section of a tube of outer diameter ``D`` and wall thickness ``t``, plane strain, quarter
   symmetry (``x >= 0, y >= 0``); symmetry ``u_x = 0`` on ``x = 0`` and ``u_y = 0`` on ``y = 0``;
 * a rigid flat jaw ``y = h`` descends from first touch (``h = D/2``) to ``h = closed_gap / 2``;
   the jaw gap is ``2 h``; node-to-plane contact with the outer wall, ``frictionless`` (default)
-  or ``stick`` (seed 003's "no sliding at the interface": a node that touches the jaw keeps its
+  or ``stick`` (Guachi et al.'s "no sliding at the interface": a node that touches the jaw keeps its
   ``x`` until it lifts off);
 * self-contact of the inner wall with its mirror image is contact with the rigid plane ``y = 0``
   (frictionless), which the inner wall reaches once the walls meet (``gap ~ 2 t``);
@@ -180,7 +180,7 @@ class CaseSpec:
     jaw_length_mm : float
         Length of tube squeezed by the jaws (mm): out-of-plane depth of the 2D model.
     closed_gap_mm : float
-        Jaw gap at full closure (mm); seed 003: 1.5 mm staple cartridge.
+        Jaw gap at full closure (mm); Guachi et al. (2020): 1.5 mm staple cartridge.
     force_cap_N : float
         Stop once the jaw force passes this (N).
     mesh : MeshSpec
@@ -189,7 +189,7 @@ class CaseSpec:
         Poisson ratio override for the material (None: material default 0.49).
     contact : str
         Jaw contact law, one of :data:`CONTACTS_2D`: ``"frictionless"`` (default: the shipped
-        2D data set) or ``"stick"`` (no sliding once a node touches the jaw, seed 003).
+        2D data set) or ``"stick"`` (no sliding once a node touches the jaw, Guachi et al. (2020)).
     """
 
     material: str

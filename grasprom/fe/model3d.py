@@ -1,15 +1,15 @@
 """3D FE model of a tube (colon wall) clamped between two rigid flat jaws of finite length.
 
-Model (issue #18; seed 003's "CS" cylinder with finite jaws):
+Model (issue #18; Guachi et al.'s "CS" cylinder with finite jaws):
 
 * tube of outer diameter ``D``, wall ``t``, length ``L``; 1/8 symmetry: ``u_x = 0`` on ``x = 0``,
   ``u_y = 0`` on ``y = 0`` (the jaws move along ``y``), ``u_z = 0`` on the jaw mid-plane
   ``z = 0``; the free end ``z = L/2`` is either ``"free"`` or ``"seed"`` (``u_x = u_y = 0``,
-  axial translation free: seed 003's edge condition; rotations are not dofs of a solid);
+  axial translation free: Guachi et al.'s edge condition; rotations are not dofs of a solid);
 * a rigid jaw of length ``jaw_length_mm``: flat (``y = h``) for ``|z| <= jaw_length/2 - r``,
   rounded off with the edge radius ``r`` beyond, so its edge does not cut the mesh;
 * contact of the outer-wall nodes with the jaw, exact primal active set: ``"stick"`` (default,
-  seed 003's "no sliding at the interface": a touching node is tied to the jaw at its touch
+  Guachi et al.'s "no sliding at the interface": a touching node is tied to the jaw at its touch
   point, all three components prescribed, released when its normal reaction turns tensile) or
   ``"frictionless"`` (the node's normal displacement is prescribed, the tangential one free; on
   the rounded edge in a rotated frame with the node projected back onto the arc);
@@ -82,10 +82,10 @@ class CaseSpec3D:
         force by 5.1, 4.4, 1.4, 0.4 % at gaps 20, 10, 5, 2.9 mm; at L = 240 free and seed ends
         agree within 0.15 % (the end condition no longer matters), see bench_fe3d ``length``.
     ends : str
-        ``"free"`` (default) or ``"seed"`` (``u_x = u_y = 0`` at ``z = L/2``, seed 003's edge
+        ``"free"`` (default) or ``"seed"`` (``u_x = u_y = 0`` at ``z = L/2``, Guachi et al.'s edge
         condition; it clamps the ovalisation at the end, so the force depends on ``L``).
     contact : str
-        ``"stick"`` (default, seed 003's no sliding) or ``"frictionless"`` (slower: the
+        ``"stick"`` (default, Guachi et al.'s no sliding) or ``"frictionless"`` (slower: the
         rounded jaw edge needs more active-set passes).
     friction : float
         Coulomb coefficient (unused: no ``"coulomb"`` contact yet).

@@ -18,7 +18,7 @@ P = kin.ChainParams()
 LO, HI = kin.theta_range_deg(P)
 THETA = np.linspace(LO, HI, 441)
 
-# Documented in the module docstring and README: seed formula vs derived chain, defaults.
+# Documented in the module docstring and README: paper's formula vs derived chain, defaults.
 DOC_MAX_DEV = -0.870  # at theta = 22 deg (open)
 DOC_MIN_DEV = -0.810  # at theta = 0 deg (closed)
 DOC_RATIO_OPEN, DOC_RATIO_CLOSED = 0.793, 0.581
@@ -211,7 +211,7 @@ def test_handle_force_slope_matches_finite_difference():
 
 
 def test_seed_formula_deviation_figure():
-    """Seed eqs (1)-(4) vs derived chain: the documented deviation, computed."""
+    """Eqs (1)-(4) vs derived chain: the documented deviation, computed."""
     th = np.linspace(LO, HI, 2201)
     derived = kin.transmission_ratio(th, P)
     seed = kin.seed_transmission_ratio(th, P)
@@ -222,7 +222,7 @@ def test_seed_formula_deviation_figure():
     assert th[i_max] == pytest.approx(HI)
     assert dev[i_min] == pytest.approx(DOC_MIN_DEV, abs=5e-4)
     assert th[i_min] == pytest.approx(LO)
-    # closed form at closure: the seed's ratio over the derived one is |d| / L1 (= sin mu)
+    # closed form at closure: the paper's ratio over the derived one is |d| / L1 (= sin mu)
     assert seed[0] / derived[0] == pytest.approx(abs(P.offset_d_mm) / P.L1_mm, rel=1e-12)
     assert derived[-1] == pytest.approx(DOC_RATIO_OPEN, abs=5e-4)
     assert derived[0] == pytest.approx(DOC_RATIO_CLOSED, abs=5e-4)
@@ -306,7 +306,8 @@ def test_plot_transmission(tmp_path):
 
 
 def test_seed_comparison_explains_the_gap():
-    """Issue 16 item 6: the seed 003 curve of the transmission figure sits 5-8x below the
+    """Issue 16 item 6: the Guachi et al. (2020) curve of the transmission figure sits 5-8x below
+    the
     derived chain because eq (2) moves the rod by L1 per radian; the true rod travel per radian,
     measured here by a central difference of the rod stroke, is a few mm, and
     derived / seed = 1 / (sin(mu) cos(theta / 2)) with mu the crank-link angle."""

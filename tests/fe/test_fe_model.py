@@ -182,7 +182,7 @@ def stick_vs_frictionless():
 
 @pytest.mark.slow
 def test_stick_contact_2d_against_the_independent_model(stick_vs_frictionless):
-    """Stick (seed 003's no sliding) vs frictionless in 2D.
+    """Stick (Guachi et al.'s no sliding) vs frictionless in 2D.
 
     References: in bending, a contact law hardly matters (no wall squeezes out yet), stick at
     most a few percent stiffer; once the walls meet the frictionless double wall squeezes out

@@ -49,7 +49,7 @@ def test_force_increases_with_thickness_at_every_gap(sweep):
 
 
 def test_linear_elastic_is_stiffer_than_mooney_rivlin(sweep):
-    """Seed 003: LE (E = 5.18 MPa) is stiffer than MR (small-strain E = 0.84 MPa)."""
+    """Guachi et al. (2020): LE (E = 5.18 MPa) is stiffer than MR (small-strain E = 0.84 MPa)."""
     for t in THICKNESSES:
         g, _ = curve(sweep, "le", t)
         for gap in np.linspace(g.min(), 25.0, 30):
