@@ -842,9 +842,12 @@ def _cmd_export(args: argparse.Namespace) -> int:
         demo = write_demo_input(out.with_name(out.stem + "_input.csv"), params, sur)
     except (OSError, ValueError, RuntimeError) as exc:
         return _error(f"export {args.export_command}", exc)
+    from grasprom.export.variables import covered_materials
+
     print(
         f"grasprom export fmu: {out} (FMI {args.fmi}.0 co-simulation, "
-        f"{out.stat().st_size / 1024:.0f} KiB, {params.material} {params.thickness_mm:g} mm)"
+        f"{out.stat().st_size / 1024:.0f} KiB, {params.material} {params.thickness_mm:g} mm; "
+        f"materials {', '.join(covered_materials(sur))})"
     )
     print(f"  quick look: fmpy simulate {out} --input-file {demo} --show-plot")
     print("  (--show-plot needs plotly: pip install 'grasprom[plot]')")
@@ -884,7 +887,9 @@ def _add_build_parser(sub) -> None:
         metavar="MM",
         help="wall thickness of the exported operating point in mm (default 1.4)",
     )
-    b.add_argument("--material", default="mr", help="mr, nh or le (default mr)")
+    b.add_argument("--material", default="mr",
+                   help="material of the operating point: mr, nh or le, one the FE sweep has "
+                   "(default mr); the outputs cover every material of the sweep")  # fmt: skip
     b.add_argument("--out", default="build", metavar="DIR", help="output folder (default build)")
     b.add_argument(
         "--fast",
@@ -910,23 +915,36 @@ def _add_build_parser(sub) -> None:
     )
 
 
+def _build_material_error(args: argparse.Namespace, fe_dir: Path) -> str | None:
+    """``--material`` not in the sweep ``fe_dir``: what the sweep covers and the command that
+    adds the material (None: covered, or a sweep without readable cases, which the surrogate
+    stage reports)."""
+    from grasprom.fe import MATERIAL_NAMES
+    from grasprom.fe.datafiles import known_stems, parse_stem
+
+    cases = [ps for ps in map(parse_stem, known_stems(fe_dir)) if ps is not None]
+    found = [m for m in MATERIAL_NAMES if any(c[0] == m for c in cases)]
+    if not found or args.material in found:
+        return None
+    ts = sorted({t for m, t in cases if m in found})
+    recorded = ", recorded in its sweep.json" if (fe_dir / "sweep.json").is_file() else ""
+    return (
+        f"--material {args.material}: the FE sweep {args.fe} covers only "
+        f"{', '.join(found)} (thickness {ts[0]:g}-{ts[-1]:g} mm); build with --material "
+        f"{found[0]}, or add {args.material} to the sweep: grasprom sweep --material "
+        f"{args.material} --thickness {','.join(f'{t:g}' for t in ts)} --out {args.fe} "
+        f"(with the model and mesh options the sweep was run with{recorded})"
+    )
+
+
 def _build_inputs_error(args: argparse.Namespace, fe_dir: Path) -> str | None:
     """What is wrong with the inputs of ``build`` before any stage runs (None: nothing); then
     creates ``--out`` (so that a bad input leaves no output folder behind)."""
     if not fe_dir.is_dir():
         return f"--fe {args.fe}: FE sweep directory {fe_dir} does not exist"
-    from grasprom.fe import MATERIAL_NAMES
-    from grasprom.fe.datafiles import known_stems, parse_stem
-
-    found = {ps[0] for ps in map(parse_stem, known_stems(fe_dir)) if ps is not None}
-    missing = [m for m in MATERIAL_NAMES if m not in found]
-    if found and missing:
-        return (
-            f"--fe {args.fe}: the sweep has {', '.join(sorted(found))} but the FMU and Arduino "
-            f"exports carry every material ({', '.join(MATERIAL_NAMES)}); missing "
-            f"{', '.join(missing)}: add them with grasprom sweep --material "
-            f"{','.join(MATERIAL_NAMES)} (same --thickness and --out)"
-        )
+    err = _build_material_error(args, fe_dir)
+    if err is not None:
+        return err
     if args.augmented:
         from grasprom.gap import load_augmented
 
@@ -982,6 +1000,8 @@ def _cmd_build(args: argparse.Namespace, argv: Sequence[str]) -> int:
     except KeyboardInterrupt:
         print("grasprom build: interrupted; outputs of finished stages kept", file=sys.stderr)
         return 130
+    if res.coverage is not None:
+        print(f"grasprom build: {res.coverage.statement()}", file=sys.stderr)
     print(summary(res))
     return 0
 

@@ -34,3 +34,15 @@ def surrogate():
     from grasprom.surrogate import Surrogate
 
     return Surrogate.build(ROOT / "fe_data" / "2d")
+
+
+@pytest.fixture(scope="session")
+def surrogate_mr_le(tmp_path_factory):
+    """Surrogate of the shipped 2D sweep without nh (issue 16: exports of a sweep that lacks a
+    material; nh, code 1, is the gap between the covered codes 0 mr and 2 le)."""
+    from grasprom.surrogate import Surrogate
+    from tests.sweep_subset import copy_sweep
+
+    return Surrogate.build(
+        copy_sweep("fe_data/2d", tmp_path_factory.mktemp("fe_mr_le"), ["mr", "le"])
+    )

@@ -510,6 +510,30 @@ ROWS += [
         None,
         "--material",
     ),
+    (  # issue 16: a sweep of mr only builds; another material is named with what it covers
+        "build-material-not-swept",
+        ["build", "--fe", "{one_material}", "--material", "nh", "--out", "{out}", "--fast"],
+        None,
+        "covers only mr",
+    ),
+    (
+        "tune-material-not-swept",
+        ["tune", "--fe", "{one_material}", "--material", "le", "--no-plots", "--out", "{out}"],
+        None,
+        "'le' not in the surrogate, which covers mr",
+    ),
+    (
+        "fmu-material-not-swept",
+        ["export", "fmu", "--fe", "{one_material}", "--params", "{f}", "--out", "{out}"],
+        ("p.json", _j({"material": "nh"})),
+        "'nh' is not in the surrogate, which covers mr",
+    ),
+    (
+        "ard-material-not-swept",
+        ["export", "arduino", "--fe", "{one_material}", "--params", "{f}", "--out", "{out}"],
+        ("p.json", _j({"material": "le"})),
+        "'le' is not in the surrogate, which covers mr",
+    ),
     (
         "build-rendering",
         ["build", "--fe", FE2D, "--rendering", "foo", "--out", "{out}"],

@@ -303,9 +303,14 @@ static void command(char *s) {
     case 'M':
       for (uint8_t i = 0; i < GF_N_MATERIALS; ++i) {
         if (strcmp(arg, MAT_NAMES[i]) == 0) {
-          if (select_case(i, thickness_um) == 0) {
+          int8_t rc = select_case(i, thickness_um);
+          if (rc == 0) {
             Serial.print(F("OK M "));
             Serial.println(arg);
+          } else if (rc < 0) {  // a material this export's FE sweep did not have
+            Serial.print(F("ERR M material '"));
+            Serial.print(arg);
+            Serial.println(F("' not in this export's tables (" GF_MATERIAL_LIST ")"));
           } else {
             Serial.println(F("ERR M thickness outside this material's tables"));
           }

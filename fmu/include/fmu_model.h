@@ -48,6 +48,8 @@ typedef struct {
     double min;     /* SI, -inf/+inf if unbounded */
     double max;
     int tunable;    /* parameter that may change in step mode (variability="tunable") */
+    unsigned int items;     /* Enumeration: bit v set for each item value v (0: not one) */
+    const char *items_text; /* Enumeration: its items, for the refusal of another value */
 } gf_var_t;
 
 /* statuses: same codes as fmi2Status and fmi3Status (OK, Warning, Discard, Error, Fatal) */

@@ -111,7 +111,8 @@ typedef struct {
  * structure generated from grasprom.export.variables.PARAMS_FIELDS (layout tested). */
 typedef struct {
     double thickness;        /* mm, inside the material's range (gc_check_params clamps) */
-    int material;            /* index into the material table: 0 mr, 1 nh, 2 le */
+    int material;            /* material code, index into the material table: 0 mr, 1 nh,
+                                2 le (a row without curves: not in this export) */
     double spring_k;         /* N/mm */
     double pulley_radius;    /* mm */
     double damping;          /* N m s / rad at the handle pivot */
@@ -339,9 +340,10 @@ typedef struct {
 #endif
 } gf_state_t;
 
-/* Select material (0 mr, 1 nh, 2 le) and wall thickness (um; clamped into the tabulated range
- * and flagged); resets the state.  Returns GF_THICKNESS_CLAMPED bits, or -1 for an unknown
- * material.  Not real-time (blends the thickness tables into RAM). */
+/* Select material (code 0 mr, 1 nh, 2 le) and wall thickness (um; clamped into the tabulated
+ * range and flagged); resets the state.  Returns GF_THICKNESS_CLAMPED bits, or -1 for an
+ * unknown material or one not in this export's tables (no thickness nodes; the state is then
+ * unchanged).  Not real-time (blends the thickness tables into RAM). */
 int8_t gf_init(gf_state_t *s, uint8_t material, uint16_t thickness_um);
 
 /* One controller step with the handle angle in encoder counts. */

@@ -389,6 +389,14 @@ static int store_value(gf_instance_t *inst, const char *fn, const gf_var_t *var,
         return GF_OK;
     }
     if (var->type == GF_INTEGER || var->type == GF_ENUMERATION) {
+        /* an enumeration takes its items only, which may skip values (the materials of a
+         * surrogate without nh: 0 mr, 2 le); the refusal names them */
+        if (var->type == GF_ENUMERATION && var->items != 0u &&
+            !(x >= 0.0 && x < 32.0 && ((var->items >> (unsigned int)x) & 1u))) {
+            gf_log(inst, GF_ERROR, "%s: %s = %.0f is not an item of this FMU (%s): rejected", fn,
+                   var->name, x, var->items_text);
+            return GF_ERROR;
+        }
         if (!(x >= var->min && x <= var->max)) {
             gf_log(inst, GF_ERROR, "%s: %s = %.0f outside [%.0f, %.0f]: rejected", fn,
                    var->name, x, var->min, var->max);

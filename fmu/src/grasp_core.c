@@ -191,8 +191,11 @@ int gc_check_params(const gc_params_t *p, const gc_material_t *materials, int n_
     int i;
     *clamped = 0;
     *thickness_clamped = t;
-    if (p->material < 0 || p->material >= n_materials) {
-        *message = "material must be 0 (mr), 1 (nh) or 2 (le)";
+    /* a code (0 mr, 1 nh, 2 le) with curves: a material the export's surrogate does not
+     * cover has a row without (short message: on the AVR the strings take RAM) */
+    if (p->material < 0 || p->material >= n_materials ||
+        GC_RDI(&materials[p->material].n_curves) < 1) {
+        *message = "material code not in this export's tables";
         return -1;
     }
 #define GC_POS(x, name) if (!(isfinite(x) && (x) > 0.0)) { *message = name " must be finite and > 0"; return -2; }
@@ -665,6 +668,7 @@ uint16_t gf_table_crc(void) {
     crc = gf_crc_bytes(crc, (const uint8_t *)gf_ch_b, (uint16_t)sizeof gf_ch_b);
     for (i = 0; i < GF_N_MATERIALS; ++i) {
         GF_MEMCPY(&m, &gf_materials[i], sizeof m);
+        if (m.nt == 0) continue; /* a material not in this export: no tables */
         crc = gf_crc_bytes(crc, (const uint8_t *)m.x, (uint16_t)(2u * m.nx));
         crc = gf_crc_bytes(crc, m.k, (uint16_t)(m.nx - 1u));
         crc = gf_crc_bytes(crc, (const uint8_t *)m.t, (uint16_t)(2u * m.nt));
@@ -683,6 +687,7 @@ int8_t gf_init(gf_state_t *s, uint8_t material, uint16_t thickness_um) {
     uint16_t t = thickness_um, t0, t1;
     if (material >= GF_N_MATERIALS) return -1;
     GF_MEMCPY(&m, &gf_materials[material], sizeof m);
+    if (m.nt == 0) return -1; /* not in this export's tables */
     t0 = GF_RD16(&m.t[0]);
     t1 = GF_RD16(&m.t[m.nt - 1]);
     if (t < t0) { t = t0; rc |= GF_THICKNESS_CLAMPED; }

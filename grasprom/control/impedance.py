@@ -116,6 +116,7 @@ from typing import NamedTuple
 from grasprom.chain import kinematics as kin
 from grasprom.control.field import Field, build_field, prony_factor
 from grasprom.control.params import ControllerParams
+from grasprom.fe import MATERIAL_NAMES
 from grasprom.surrogate import Surrogate
 
 __all__ = ["COLD_START_ITERATIONS", "NEWTON_ITERATIONS", "ImpedanceController", "StepOutput"]
@@ -210,6 +211,11 @@ class ImpedanceController:
     surrogate : Surrogate
         Tissue force table; must cover ``params.material`` and ``params.thickness_mm``.
 
+    Raises
+    ------
+    ValueError
+        If it does not (the message names the materials / thickness range it covers).
+
     Examples
     --------
     >>> ctl = ImpedanceController(ControllerParams(), surrogate)   # doctest: +SKIP
@@ -217,6 +223,13 @@ class ImpedanceController:
     """
 
     def __init__(self, params: ControllerParams, surrogate: Surrogate) -> None:
+        if params.material not in surrogate.materials:
+            covered = [m for m in MATERIAL_NAMES if m in surrogate.materials]
+            raise ValueError(
+                f"material {params.material!r} is not in the surrogate, which covers "
+                f"{', '.join(covered)} (the materials of its FE sweep; add it with "
+                f"grasprom sweep --material {params.material} ...)"
+            )
         lo, hi = surrogate.thickness_range(params.material)
         if not lo <= params.thickness_mm <= hi:
             raise ValueError(

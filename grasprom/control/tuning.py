@@ -83,6 +83,7 @@ from grasprom.control.transparency import (
     transparency_table,
 )
 from grasprom.control.verification import verify_by_simulation
+from grasprom.fe import MATERIAL_NAMES
 from grasprom.surrogate import Surrogate
 
 __all__ = ["TuningResult", "clipped_limit", "tune"]
@@ -182,7 +183,9 @@ def tune(
     thicknesses : sequence of float, optional
         Wall thicknesses, mm (default: every grid thickness of each material).
     materials : sequence of str, optional
-        Materials (default: all of the surrogate).
+        Materials (default: all of the surrogate).  The result's operating point (material,
+        thickness) is ``base``'s, or :func:`covered_operating_point` when the surrogate does
+        not hold ``base.material`` (a sweep of other materials).
     safety : float
         Required ratio ``b / b_required`` (>= 1).
     cutoffs_Hz : sequence of float
@@ -212,6 +215,7 @@ def tune(
     device = device or DeviceParams()
     hand = hand or HandParams()
     cutoffs = _candidate_cutoffs(s, base, safety, materials, cutoffs_Hz)
+    base = covered_operating_point(s, base, materials)
     ch = _choose_damping(base, device, safety, cutoffs)
     # B is the total virtual damping; the controller's share is what the friction leaves
     base = replace(
@@ -411,6 +415,35 @@ def _choose_damping(
     return _DampingChoice(B, fc, k_pass, B_visc)
 
 
+def covered_operating_point(
+    s: Surrogate, base: ControllerParams, materials: Sequence[str] | None = None
+) -> ControllerParams:
+    """``base``, or, when the surrogate does not hold ``base.material``, ``base`` at the first
+    tuned material (``materials[0]``, else the first of :data:`grasprom.fe.MATERIAL_NAMES` the
+    surrogate holds) with its thickness (mm) clamped into that material's range.
+
+    So that the tuned parameters (``controller.json``) are an operating point the surrogate
+    and the exports of it cover (e.g. the default ``mr`` on a sweep of ``nh`` only).
+
+    Parameters
+    ----------
+    s : Surrogate
+    base : ControllerParams
+    materials : sequence of str, optional
+        The materials being tuned.
+
+    Returns
+    -------
+    ControllerParams
+    """
+    if base.material in s.materials:
+        return base
+    mats = list(materials or ()) or [m for m in MATERIAL_NAMES if m in s.materials]
+    m = mats[0] if mats else s.materials[0]
+    lo, hi = s.thickness_range(m)
+    return replace(base, material=m, thickness_mm=min(max(base.thickness_mm, lo), hi))
+
+
 def _candidate_cutoffs(
     s: Surrogate,
     base: ControllerParams,
@@ -424,7 +457,10 @@ def _candidate_cutoffs(
     if materials:
         for m in materials:
             if m not in s.materials:
-                raise ValueError(f"material {m!r} not in the surrogate {list(s.materials)}")
+                raise ValueError(
+                    f"material {m!r} not in the surrogate, which covers "
+                    f"{', '.join(s.materials)} (the materials of its FE sweep)"
+                )
     nyq = 0.5 / base.sample_time_s
     cutoffs = [float(c) for c in cutoffs_Hz if 0 < c < nyq]
     if not cutoffs:

@@ -16,7 +16,11 @@ once and generated from here (:mod:`grasprom.export.codegen`):
   variability, unit, display unit, the :class:`~grasprom.control.ControllerParams` field and the
   C field they map to (and the core unit, which gives the SI factor), static limits,
   description.  :func:`variables` resolves the start values and the limits that depend on the
-  parameters and the surrogate.
+  parameters and the surrogate;
+* the materials an export covers: those of its surrogate (:func:`covered_materials`, in
+  :data:`grasprom.fe.MATERIAL_NAMES` order); the ``Material`` enumeration lists only them with
+  their fixed values (0 mr, 1 nh, 2 le: :func:`material_type`), the C tables keep the codes
+  (a material not covered has an empty row) and the FMU and the firmware refuse the others.
 """
 
 from __future__ import annotations
@@ -91,18 +95,46 @@ class EnumType:
         Type name (``declaredType`` of its variables).
     description : str
     items : tuple of (str, str)
-        (item name, description); the item's value is its position (0, 1, ...), the code the
-        C core takes.
+        (item name, description), in value order.
+    values : tuple of int
+        The items' values, the codes the C core takes (empty: their positions 0, 1, ...).  A
+        subset of a fixed enumeration keeps the values of the full one (:func:`material_type`).
+    scope : str
+        What the items are (appended to the refusal of a value that is not one, e.g. "the
+        materials of the FE sweep this FMU was built from"; empty: nothing).
     """
 
     name: str
     description: str
     items: tuple[tuple[str, str], ...]
+    values: tuple[int, ...] = ()
+    scope: str = ""
 
     @property
     def names(self) -> tuple[str, ...]:
         """Item names in value order."""
         return tuple(n for n, _ in self.items)
+
+    @property
+    def item_values(self) -> tuple[int, ...]:
+        """The items' values (the codes of the C core), in item order."""
+        return self.values or tuple(range(len(self.items)))
+
+    def value_of(self, name: str) -> int:
+        """The value (C code) of the item ``name``.
+
+        Raises
+        ------
+        ValueError
+            If it is not an item of this type (the message lists the items).
+        """
+        if name not in self.names:
+            raise ValueError(f"{name!r} is not an item of {self.name} ({self.listing()})")
+        return self.item_values[self.names.index(name)]
+
+    def listing(self) -> str:
+        """The items as ``"0 mr, 2 le"`` (value and name, in item order)."""
+        return ", ".join(f"{v} {n}" for v, n in zip(self.item_values, self.names))
 
 
 _MATERIAL_ITEMS = {
@@ -117,7 +149,96 @@ _RENDERING_ITEMS = {
 MATERIAL_TYPE = EnumType(
     "Material", "tissue material model", tuple((m, _MATERIAL_ITEMS[m]) for m in MATERIAL_NAMES)
 )
-"""Enumeration of the ``material`` parameter: :data:`grasprom.fe.MATERIAL_NAMES` in order."""
+"""Enumeration of the ``material`` parameter: :data:`grasprom.fe.MATERIAL_NAMES` in order
+(values 0 mr, 1 nh, 2 le); an export lists the materials its surrogate covers
+(:func:`material_type`)."""
+
+
+def covered_materials(surrogate: Surrogate) -> tuple[str, ...]:
+    """The materials of :data:`grasprom.fe.MATERIAL_NAMES` the surrogate holds, in that order
+    (the materials an export covers).
+
+    Parameters
+    ----------
+    surrogate : Surrogate
+
+    Returns
+    -------
+    tuple of str
+
+    Raises
+    ------
+    ValueError
+        If it holds none of them.
+    """
+    out = tuple(m for m in MATERIAL_NAMES if m in surrogate.materials)
+    if not out:
+        raise ValueError(
+            f"the surrogate holds none of the materials {', '.join(MATERIAL_NAMES)} "
+            f"(it has {', '.join(surrogate.materials) or 'none'})"
+        )
+    return out
+
+
+def material_type(materials: tuple[str, ...] = MATERIAL_NAMES) -> EnumType:
+    """The ``Material`` enumeration of an export covering ``materials``.
+
+    Its items are those materials in :data:`grasprom.fe.MATERIAL_NAMES` order with their fixed
+    values (``mr`` 0, ``nh`` 1, ``le`` 2, whichever are left out); all of them: exactly
+    :data:`MATERIAL_TYPE`.
+
+    Parameters
+    ----------
+    materials : tuple of str
+        Names from :data:`grasprom.fe.MATERIAL_NAMES` (e.g. :func:`covered_materials`).
+
+    Returns
+    -------
+    EnumType
+    """
+    unknown = [m for m in materials if m not in MATERIAL_NAMES]
+    if unknown or not materials:
+        raise ValueError(f"materials must be some of {', '.join(MATERIAL_NAMES)}, got {materials}")
+    mats = tuple(m for m in MATERIAL_NAMES if m in materials)
+    if mats == MATERIAL_NAMES:
+        return MATERIAL_TYPE
+    return replace(
+        MATERIAL_TYPE,
+        items=tuple((m, _MATERIAL_ITEMS[m]) for m in mats),
+        values=tuple(MATERIAL_NAMES.index(m) for m in mats),
+        scope="the materials of the FE sweep this FMU was built from",
+    )
+
+
+def material_check(params: ControllerParams, surrogate: Surrogate) -> tuple[str, ...]:
+    """The materials an export of ``surrogate`` covers; raises if ``params.material`` is not one.
+
+    Parameters
+    ----------
+    params : ControllerParams
+        Its material is the export's start value (FMU) or boot case (Arduino).
+    surrogate : Surrogate
+
+    Returns
+    -------
+    tuple of str
+        :func:`covered_materials`.
+
+    Raises
+    ------
+    ValueError
+        If the surrogate does not hold ``params.material`` (the message names what it holds).
+    """
+    mats = covered_materials(surrogate)
+    if params.material not in mats:
+        raise ValueError(
+            f"the controller's material {params.material!r} is not in the surrogate, which "
+            f"covers {', '.join(mats)}: set the material of the parameters to one of these, or "
+            f"add it to the FE sweep (grasprom sweep --material {params.material} ...)"
+        )
+    return mats
+
+
 RENDERING_TYPE = EnumType(
     "Rendering", "tissue rendering scheme", tuple((r, _RENDERING_ITEMS[r]) for r in RENDERINGS)
 )
@@ -317,7 +438,7 @@ def _output(name, type_, desc, core_field, column, unit=None, display=None, core
                    core_unit, column)  # fmt: skip
 
 
-_MATERIALS_DESC = ", ".join(f"{i} {m}" for i, m in enumerate(MATERIAL_NAMES))
+_MATERIALS_DESC = MATERIAL_TYPE.listing()
 _RENDERINGS_DESC = ", ".join(f"{i} {m}" for m, i in RENDERING_CODES.items())
 
 _PARAMETERS: tuple[VarSpec, ...] = (
@@ -846,11 +967,12 @@ def derived_values(params: ControllerParams, surrogate: Surrogate) -> dict[str, 
     tl_max = spec("torque_limit").max
     r_min = spec("pulley_radius").min
     v_max = _nice_ceil(max((th_hi - th_lo) / spec("sample_time").min, THETA_DOT_MAX))
+    mats = covered_materials(surrogate)
     return {
         "theta": {"start": th_hi, "min": th_lo, "max": th_hi},
         "thickness": {
-            "min": min(surrogate.thickness_range(m)[0] for m in MATERIAL_NAMES) * m_per_mm,
-            "max": max(surrogate.thickness_range(m)[1] for m in MATERIAL_NAMES) * m_per_mm,
+            "min": min(surrogate.thickness_range(m)[0] for m in mats) * m_per_mm,
+            "max": max(surrogate.thickness_range(m)[1] for m in mats) * m_per_mm,
         },
         "torque": {"min": -tl_max, "max": tl_max},
         "force_handle": {"min": -tl_max / r_min, "max": tl_max / r_min},
@@ -874,6 +996,25 @@ def _default_start(s: VarSpec) -> float | int | None:
     return 0 if s.type == "Boolean" else 0.0
 
 
+def material_spec(materials: tuple[str, ...]) -> VarSpec:
+    """The row of ``material`` for an export covering ``materials``: its enumeration
+    (:func:`material_type`), description and [min, max] list only those (values fixed).
+
+    Parameters
+    ----------
+    materials : tuple of str
+        E.g. :func:`covered_materials`.
+
+    Returns
+    -------
+    VarSpec
+    """
+    t = material_type(materials)
+    desc = "tissue material model: " + t.listing() + (f" ({t.scope})" if t.scope else "")
+    vals = t.item_values
+    return replace(spec("material"), description=desc, min=min(vals), max=max(vals), enum=t)
+
+
 def variables(params: ControllerParams, surrogate: Surrogate) -> list[Variable]:
     """The FMU's variables, in value-reference order (the single source of the C config
     header, the modelDescription and the documentation).
@@ -883,15 +1024,23 @@ def variables(params: ControllerParams, surrogate: Surrogate) -> list[Variable]:
     params : ControllerParams
         Start values of the parameters.
     surrogate : Surrogate
-        Thickness range and force bound.
+        Materials, thickness range and force bound: the ``material`` enumeration lists the
+        materials it covers (:func:`material_spec`).
 
     Returns
     -------
     list of Variable
+
+    Raises
+    ------
+    ValueError
+        If the surrogate does not cover ``params.material`` (:func:`material_check`).
     """
+    mat_spec = material_spec(material_check(params, surrogate))
     derived = derived_values(params, surrogate)
     out: list[Variable] = []
     for vr, s in enumerate(SPECS):
+        s = mat_spec if s.name == "material" else s
         if s.params_field is not None:
             start = si_start(s, params)
             start = int(start) if s.type == "Boolean" else start

@@ -31,6 +31,11 @@
    (provenance: versions, FE data hashes, git revision, command line, stage times, artefact
    hashes).
 
+The sweep may hold any of the materials ``mr``, ``nh``, ``le`` (one is enough): every output
+covers the materials and thicknesses of the sweep, no more (:class:`Coverage`, recorded in
+``build.json`` under ``results.coverage`` and stated in the report); the FMUs and the Arduino
+firmware refuse the others.  ``--material`` must be one of them.
+
 A stage that fails raises :class:`StageError` naming it; what the earlier stages wrote is kept,
 and a partial ``report.html`` of the finished stages is written (best effort).
 
@@ -41,8 +46,8 @@ Layout (one module per concept; import the names below from :mod:`grasprom.pipel
 
 - :mod:`~grasprom.pipeline.options` -- :class:`BuildOptions` (the inputs) and
   :class:`StageError`.
-- :mod:`~grasprom.pipeline.result` -- :class:`BuildResult`, :class:`CosimResult` and
-  :func:`results` (the headline figures of ``build.json``).
+- :mod:`~grasprom.pipeline.result` -- :class:`BuildResult`, :class:`CosimResult`,
+  :class:`Coverage` and :func:`results` (the headline figures of ``build.json``).
 - :mod:`~grasprom.pipeline.stages` -- :data:`STAGES` and one function per stage.
 - :mod:`~grasprom.pipeline.build` -- :func:`run_build`, the driver (progress, timing, failure).
 - :mod:`~grasprom.pipeline.cosim` -- :func:`hand_force_N`, :func:`cosimulate`,
@@ -59,7 +64,7 @@ from grasprom.pipeline.buildinfo import provenance, sha256_path
 from grasprom.pipeline.cosim import cosimulate, grasp_settling, hand_force_N, plot_cosim
 from grasprom.pipeline.options import BuildOptions, StageError
 from grasprom.pipeline.report import error_rows, summary, write_report
-from grasprom.pipeline.result import BuildResult, CosimResult, results
+from grasprom.pipeline.result import BuildResult, CosimResult, Coverage, results
 from grasprom.pipeline.stages import FMU2_NAME, FMU3_NAME, STAGES
 
 __all__ = [
@@ -69,6 +74,7 @@ __all__ = [
     "BuildOptions",
     "BuildResult",
     "CosimResult",
+    "Coverage",
     "StageError",
     "cosimulate",
     "error_rows",

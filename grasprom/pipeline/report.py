@@ -145,6 +145,8 @@ def _head_section(res: BuildResult, opts: BuildOptions) -> list[str]:
         f"{html.escape(res.started)}; operating point {html.escape(opts.material)} "
         f"{opts.thickness_mm:g} mm{' (--fast)' if opts.fast else ''}.</p>",
     ]
+    if res.coverage is not None:  # issue 16: the materials and thicknesses the outputs cover
+        parts.append(f"<p><b>Coverage</b>: {html.escape(res.coverage.statement())}.</p>")
     if res.failed_stage:
         parts.append(f"<p class='fail'><b>Build failed at stage '{res.failed_stage}'</b>: "
                      f"{html.escape(str(res.error))}. Sections of later stages are missing."

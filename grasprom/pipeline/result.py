@@ -15,6 +15,66 @@ if TYPE_CHECKING:
     from grasprom.surrogate import Surrogate
 
 
+@dataclass(frozen=True)
+class Coverage:
+    """Which materials and wall thicknesses the outputs of a build cover: those of its FE sweep
+    (the surrogate, the tuned controller, the FMUs' ``Material`` enumeration and tables, the
+    Arduino tables).
+
+    Parameters
+    ----------
+    materials : tuple of str
+        Covered materials in :data:`grasprom.fe.MATERIAL_NAMES` order.
+    thickness_mm : tuple of tuple of float
+        Per covered material (same order), its swept thickness nodes, mm ascending; thickness
+        is interpolated between them and clamped outside.
+    """
+
+    materials: tuple[str, ...]
+    thickness_mm: tuple[tuple[float, ...], ...]
+
+    @classmethod
+    def of(cls, surrogate: Surrogate) -> Coverage:
+        """The coverage of a surrogate (its materials and thickness nodes)."""
+        from grasprom.export.variables import covered_materials
+
+        mats = covered_materials(surrogate)
+        return cls(mats, tuple(tuple(float(t) for t in surrogate.thicknesses(m)) for m in mats))
+
+    @property
+    def missing(self) -> tuple[str, ...]:
+        """Materials of :data:`grasprom.fe.MATERIAL_NAMES` the outputs do not cover."""
+        from grasprom.fe import MATERIAL_NAMES
+
+        return tuple(m for m in MATERIAL_NAMES if m not in self.materials)
+
+    def statement(self) -> str:
+        """One sentence (for stderr and the report): the materials and thickness ranges (mm)
+        covered, and what is left out."""
+        parts = [f"{m} {ts[0]:g}-{ts[-1]:g} mm ({len(ts)} FE thicknesses)"
+                 for m, ts in zip(self.materials, self.thickness_mm)]  # fmt: skip
+        text = "outputs cover material " if len(parts) == 1 else "outputs cover materials "
+        text += ", ".join(parts)
+        if self.missing:
+            text += (f"; not {', '.join(self.missing)} (not in the FE sweep: the FMUs and the "
+                     "Arduino firmware refuse them)")  # fmt: skip
+        return text
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready: ``materials``, ``thickness_mm`` (the union of the thickness nodes, mm),
+        ``thickness_mm_by_material``, ``thickness_range_mm`` (per material, [min, max] mm),
+        ``missing_materials`` and ``statement``."""
+        by = dict(zip(self.materials, (list(ts) for ts in self.thickness_mm)))
+        return {
+            "materials": list(self.materials),
+            "thickness_mm": sorted({t for ts in self.thickness_mm for t in ts}),
+            "thickness_mm_by_material": by,
+            "thickness_range_mm": {m: [ts[0], ts[-1]] for m, ts in by.items()},
+            "missing_materials": list(self.missing),
+            "statement": self.statement(),
+        }
+
+
 @dataclass
 class CosimResult:
     """Grasp-hold-release co-simulation through the FMU (see
@@ -65,6 +125,8 @@ class BuildResult:
         Name of the stage that failed, if any.
     error : str or None
         Its message.
+    coverage : Coverage or None
+        Materials and thicknesses the outputs cover (set by the surrogate stage).
     """
 
     out_dir: Path
@@ -84,6 +146,7 @@ class BuildResult:
     holdout_dir: Path | None = None
     started: str = ""
     total_s: float = 0.0
+    coverage: Coverage | None = None
 
 
 def results(res: BuildResult) -> dict[str, Any]:
@@ -96,11 +159,14 @@ def results(res: BuildResult) -> dict[str, Any]:
     Returns
     -------
     dict
-        ``surrogate`` (held-out / leave-one-out haptic errors, aligned scheme), ``tuning``
+        ``coverage`` (:meth:`Coverage.to_dict`: the materials and thicknesses the outputs
+        cover), ``surrogate`` (held-out / leave-one-out haptic errors, aligned scheme), ``tuning``
         (chosen parameters, passivity margin), ``fmu`` (file sizes), ``arduino`` (budget
         figures), ``cosim`` (peaks, FMU vs Python torque difference).
     """
     out: dict[str, Any] = {}
+    if res.coverage is not None:
+        out["coverage"] = res.coverage.to_dict()
     if res.surrogate is not None:
         out["surrogate"] = _surrogate_figures(res.surrogate)
     if res.tuning is not None:

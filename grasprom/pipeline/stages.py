@@ -20,7 +20,7 @@ from grasprom.pipeline.buildinfo import sha256_path
 from grasprom.pipeline.cosim import cosimulate, grasp_settling, plot_cosim
 from grasprom.pipeline.options import BuildOptions
 from grasprom.pipeline.report import write_report
-from grasprom.pipeline.result import BuildResult
+from grasprom.pipeline.result import BuildResult, Coverage
 
 if TYPE_CHECKING:
     from grasprom.export import ArduinoExport
@@ -33,7 +33,8 @@ FMU3_NAME = "GraspController_fmi3.fmu"
 
 
 def _stage_surrogate(opts: BuildOptions, res: BuildResult, out: Path, figs: Path) -> None:
-    """Build the surrogate, check the operating point; ``surrogate.json`` and its figures."""
+    """Build the surrogate, record its :class:`Coverage` (the materials and thicknesses every
+    later output covers), check the operating point; ``surrogate.json`` and its figures."""
     from grasprom.fe import plot_sweep
     from grasprom.surrogate import BuildParams, Surrogate, plot_surrogate
 
@@ -45,8 +46,10 @@ def _stage_surrogate(opts: BuildOptions, res: BuildResult, out: Path, figs: Path
         warnings.simplefilter("always")
         s = Surrogate.build(fe, params=BuildParams(), holdout_dir=res.holdout_dir)
     res.notes += [f"surrogate: {w.message}" for w in caught]
+    res.coverage = Coverage.of(s)
     if opts.material not in s.materials:
-        raise ValueError(f"--material {opts.material!r} not in the surrogate {list(s.materials)}")
+        raise ValueError(f"--material {opts.material!r} is not in the FE sweep, which covers "
+                         f"{', '.join(res.coverage.materials)}")  # fmt: skip
     lo, hi = s.thickness_range(opts.material)
     if not lo <= opts.thickness_mm <= hi:
         raise ValueError(

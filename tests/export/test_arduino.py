@@ -200,6 +200,33 @@ def test_host_error_within_budget(surrogate, host_dense):
     assert e_nodes.flag_mismatch["coupling_active"] < 0.001 * e_nodes.steps
 
 
+def test_tables_of_a_sweep_without_a_material(surrogate, surrogate_mr_le, tmp_path):
+    """Issue 16: the tables of a surrogate without nh hold mr and le only (codes kept: nh's
+    entry is empty), gf_init refuses nh (-1) and the covered materials stay within the error
+    budget on the host."""
+    need("gcc", "gcc")
+    with pytest.raises(ValueError, match="'nh' is not in the surrogate, which covers mr, le"):
+        ar.build_tables(surrogate_mr_le, ControllerParams(material="nh"), 0.01)
+    t = ar.build_tables(surrogate_mr_le, ControllerParams(), 0.01)
+    full = ar.build_tables(surrogate, ControllerParams(), 0.01)
+    assert t.material_names == ("mr", "le") and full.material_names == ("mr", "nh", "le")
+    src = t.tables_source()
+    assert "gf_nh_" not in src and "{0, 0, 0, 0, 0, 0, 0, 0} /* nh: not in this export */" in src
+    assert "gf_mr_y" in src and "gf_le_y" in src
+    assert "#define GF_N_MATERIALS 3 /* material codes: 0 mr, 1 nh, 2 le; tables of mr, le only" \
+        in t.config_source()  # fmt: skip
+    assert t.table_bytes < full.table_bytes
+    cases = ar.default_cases(t, surrogate_mr_le, dense=True)
+    assert {c.material for c in cases} == {"mr", "le"}
+    probe = [ar.VectorCase(m, 1400, cases[0].counts[:1]) for m in ("nh", "mr")]
+    run = ar.run_host(t, cases + probe, tmp_path)
+    assert run.init_rc[-2:] == [-1, 0] and min(run.init_rc[:-2]) >= 0
+    n = len(cases)
+    e = ar.error_figures(t, surrogate_mr_le, cases, ar.CoreRun(run.init_rc[:n], run.outputs[:n],
+                                                               b""))  # fmt: skip
+    assert e.handle_pct_fs <= 100 * ar.ERROR_BUDGET
+
+
 def test_thickness_is_clamped_and_flagged(surrogate, tables, tmp_path):
     need("gcc", "gcc")
     cases = ar.clamp_thickness_cases(tables, surrogate)

@@ -108,6 +108,27 @@ def test_c_core_clamps_thickness_and_rejects_bad_params(surrogate, tmp_path):
             core.init_raw(raw)
 
 
+def test_c_core_refuses_a_material_the_surrogate_lacks(surrogate_mr_le, tmp_path):
+    """Issue 16: the tables of a surrogate without nh keep the material codes (0 mr, 2 le) and
+    give nh a row without curves, which gc_check_params refuses; le runs as in Python."""
+    src = tables_source(surrogate_mr_le, ControllerParams().chain_params)
+    assert "gc_nh_" not in src and "gc_le_0_x" in src and "gc_mr_0_x" in src
+    assert "/* 1: nh, not in this export's surrogate */" in src
+    p = ControllerParams(material="le", thickness_mm=1.2)
+    core = CCore(p, surrogate_mr_le, tmp_path)
+    ref = ImpedanceController(p, surrogate_mr_le)
+    for th in (0.3, 0.05, 0.02):
+        assert core.step(th).force_tissue_N == pytest.approx(ref.step(th).force_tissue_N, rel=1e-9)
+    assert ref.step(0.02).force_tissue_N > 1.0
+    for code in (1, 3):
+        raw = c_params(p)
+        raw.material = code
+        with pytest.raises(ValueError, match="code -1.*material code not in this export"):
+            core.init_raw(raw)
+    with pytest.raises(ValueError, match="'nh' is not in the surrogate, which covers"):
+        ImpedanceController(ControllerParams(material="nh"), surrogate_mr_le)
+
+
 def test_tables_are_exact_hex_literals(surrogate):
     src = tables_source(surrogate, ControllerParams().chain_params)
     x0 = surrogate.table("mr").s_curves[0][0][1]

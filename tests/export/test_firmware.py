@@ -164,9 +164,11 @@ def test_crc16_ccitt_check_value():
     assert ar.crc16_ccitt(b"123456789") == 0x29B1
 
 
-def test_table_crc_of_python_matches_the_core(surrogate, tmp_path):
+@pytest.mark.parametrize("which", ["surrogate", "surrogate_mr_le"])
+def test_table_crc_of_python_matches_the_core(request, which, tmp_path):
+    """Also for tables that leave a material out (issue 16: its empty entry adds nothing)."""
     need("gcc", "gcc")
-    t = ar.build_tables(surrogate, ControllerParams(), 0.005)
+    t = ar.build_tables(request.getfixturevalue(which), ControllerParams(), 0.005)
     ar.write_core(t, tmp_path)
     (tmp_path / "crc_main.c").write_text(
         '#include <stdio.h>\n#include "grasp_core.h"\n'
@@ -375,6 +377,23 @@ def test_serial_commands_change_the_case(fw, surrogate, tmp_path):
         print(f"\n{mat} {t} mm at count {hold}: firmware {fi:.4f} N, reference {ref:.4f} N")
         assert fi == pytest.approx(ref, abs=0.02 + 0.005 * ref)
     assert after.torque_uNm > before.torque_uNm  # the stiffer case
+
+
+def test_serial_protocol_refuses_a_material_not_in_the_export(surrogate_mr_le, tmp_path):
+    """Issue 16: the firmware of a sweep without nh boots (table CRC good), refuses 'M nh' with
+    an error naming the covered materials and keeps its case; 'M le' works."""
+    b = build(surrogate_mr_le, tmp_path / "e")
+    assert b.k["GF_N_MATERIALS"] == 3  # codes kept: 0 mr, 1 nh (empty), 2 le
+    assert '#define GF_MATERIAL_LIST "mr, le"' in (b.sketch / "grasp_firmware.h").read_text()
+    script = homed_script().send(40, "S")
+    for i, cmd in enumerate(["M nh", "S", "M le", "S", "C"]):
+        script.send(50 + 10 * i, cmd)
+    run = b.run(script, 120, tmp_path / "r")
+    assert not any("CRC mismatch" in s for _, s in run.lines)
+    answers = [s for t, s in run.lines if t > 45 and s[:2] in ("OK", "ER")]
+    assert answers[0] == "ERR M material 'nh' not in this export's tables (mr, le)"
+    assert answers[1] == "OK M le" and answers[2].startswith("OK C")
+    assert run.status_after(60).material == "mr" and run.status_after(80).material == "le"
 
 
 def test_in1_in2_driver_puts_the_pwm_on_one_input(surrogate, tmp_path):

@@ -59,18 +59,24 @@ def fmus(surrogate, tmp_path_factory):
     out = {}
     for v in (2, 3):
         path = export_fmu(d / f"GraspController{v}.fmu", surrogate=surrogate, fmi_version=v)
-        unz = Path(extract(str(path), str(d / f"x{v}")))
-        md = read_model_description(str(path))
-        plat = "linux64" if v == 2 else "x86_64-linux"
-        out[v] = SimpleNamespace(
-            path=path,
-            dir=unz,
-            md=md,
-            token=md.guid if v == 2 else md.instantiationToken,
-            vars={mv.name: mv for mv in md.modelVariables},
-            binary=unz / "binaries" / plat / "GraspController.so",
-        )
+        out[v] = opened_fmu(path, d / f"x{v}", v)
     return out
+
+
+def opened_fmu(path: Path, folder: Path, v: int) -> SimpleNamespace:
+    """An exported FMU extracted into ``folder``: its paths, model description and variables
+    (what :class:`_Slave` drives)."""
+    unz = Path(extract(str(path), str(folder)))
+    md = read_model_description(str(path))
+    plat = "linux64" if v == 2 else "x86_64-linux"
+    return SimpleNamespace(
+        path=path,
+        dir=unz,
+        md=md,
+        token=md.guid if v == 2 else md.instantiationToken,
+        vars={mv.name: mv for mv in md.modelVariables},
+        binary=unz / "binaries" / plat / "GraspController.so",
+    )
 
 
 @pytest.fixture(scope="module")
@@ -581,6 +587,10 @@ def test_valgrind_1000_instantiate_step_free(fmus, driver, version):
 
 
 # ----------------------------------------------------------------------------------- fmpy slave
+_FMI2_CALLBACKS: list = []
+"""Every FMI 2 callback structure registered with fmpy's logger proxy (kept alive)."""
+
+
 class _Slave:
     """Low-level FMI calls through fmpy returning the status (0..4) and capturing the log."""
 
@@ -594,23 +604,29 @@ class _Slave:
         self.s = cls(guid=fmu.token, unzipDirectory=str(fmu.dir),
                      modelIdentifier="GraspController", instanceName="t")  # fmt: skip
         self.log: list[tuple[int, str]] = []
-        if version == 2:
-            from fmpy import calloc, free
-            from fmpy.fmi2 import (
-                fmi2CallbackAllocateMemoryTYPE,
-                fmi2CallbackFreeMemoryTYPE,
-                fmi2CallbackFunctions,
-                fmi2CallbackLoggerTYPE,
-            )
-            from fmpy.logging import addLoggerProxy
-
-            cb = fmi2CallbackFunctions()
-            cb.logger = fmi2CallbackLoggerTYPE(self._log2)
-            cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-            cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-            addLoggerProxy(ctypes.byref(cb))
-            self.cb = cb
         self.c = None
+
+    def _fmi2_callbacks(self):
+        """FMI 2 callbacks logging into this slave.  fmpy's logger proxy (it formats the
+        variadic message) dispatches to one logger per process, the last registered: so every
+        instantiation registers its slave's anew, and the registered ones are kept alive (a
+        later FMU instance of another slave never calls a freed callback)."""
+        from fmpy import calloc, free
+        from fmpy.fmi2 import (
+            fmi2CallbackAllocateMemoryTYPE,
+            fmi2CallbackFreeMemoryTYPE,
+            fmi2CallbackFunctions,
+            fmi2CallbackLoggerTYPE,
+        )
+        from fmpy.logging import addLoggerProxy
+
+        cb = fmi2CallbackFunctions()
+        cb.logger = fmi2CallbackLoggerTYPE(self._log2)
+        cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        addLoggerProxy(ctypes.byref(cb))
+        _FMI2_CALLBACKS.append(cb)
+        return cb
 
     def _log2(self, env, name, status, category, message):
         self.log.append((status, message.decode()))
@@ -666,6 +682,7 @@ class _Slave:
 
         tok = (token or self.fmu.token).encode()
         if self.v == 2:
+            self.cb = self._fmi2_callbacks()
             self.c = self.s.fmi2Instantiate(b"t", kind, tok, b"", ctypes.byref(self.cb), 0, 0)
         else:
             self.cb3 = fmi3LogMessageCallback(self._log3)
@@ -998,6 +1015,46 @@ def test_material_and_rendering_are_enumerations(fmus, slaves, surrogate, versio
             assert s.get("force_tissue") == (0, pytest.approx(b.force_tissue_N, rel=REL))
         assert b.force_tissue_N > 1.0  # in contact: the material matters
         assert s.terminate() == 0
+    finally:
+        s.free()
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_material_enumeration_lists_only_the_covered_materials(surrogate_mr_le, tmp_path,
+                                                               version):  # fmt: skip
+    """Issue 16: the FMU of a surrogate without nh declares Material items mr and le with their
+    fixed values 0 and 2 (fmpy validates it); nh (1, inside [min, max]) and other values are
+    refused with Error and a logged message naming the covered items; le runs as Python."""
+    _require(shutil.which("gcc") is not None, "gcc")
+    p = ControllerParams(material="le", thickness_mm=1.2)
+    with pytest.raises(ValueError, match="material 'nh' is not in the surrogate, which covers "
+                                         "mr, le"):  # fmt: skip
+        export_fmu(tmp_path / "bad.fmu", ControllerParams(material="nh"), surrogate_mr_le)
+    path = export_fmu(tmp_path / "G.fmu", p, surrogate_mr_le, fmi_version=version, windows=False)
+    assert validate_fmu(str(path)) == []
+    fmu = opened_fmu(path, tmp_path / "x", version)
+    mat = fmu.vars["material"]
+    assert [(i.name, int(i.value)) for i in mat.declaredType.items] == [("mr", 0), ("le", 2)]
+    assert (int(mat.start), int(mat.min), int(mat.max)) == (2, 0, 2)
+    assert [i.name for i in fmu.vars["rendering"].declaredType.items] == ["coupling", "clipped"]
+    html = (fmu.dir / "documentation" / "index.html").read_text()
+    assert "(materials 0 = mr, 2 = le)" in html and "<code>nh</code>" not in html
+    s = _Slave(fmu, version)
+    assert s.instantiate()
+    try:
+        for bad in (1, 3, -1):
+            assert s.set("material", bad) == 3
+            assert "is not an item of this FMU (Material items 0 mr, 2 le" in s.last()
+        assert s.set("material", 0) == 0 and s.set("material", 2) == 0
+        assert s.enter() == 0 and s.exit() == 0
+        ref = ImpedanceController(p, surrogate_mr_le)
+        t = 0.0
+        for theta in (0.3, 0.1, 0.05, 0.02):
+            assert s.set("theta", theta) == 0 and s.step(t, 1e-3) == 0
+            t += 1e-3
+            b = ref.step(theta)
+            assert s.get("force_tissue") == (0, pytest.approx(b.force_tissue_N, rel=REL))
+        assert b.force_tissue_N > 1.0  # in contact: the material matters
     finally:
         s.free()
 

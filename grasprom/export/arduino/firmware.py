@@ -50,6 +50,7 @@ Hardware model (ATmega328P at 16 MHz, Arduino Uno):
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -382,7 +383,8 @@ def _duty_scaling(c: FirmwareConfig, params: ControllerParams) -> tuple[int, int
 
 
 def firmware_header(config: FirmwareConfig, params: ControllerParams, *, table_crc: int,
-                    version: str, fe_hash: str) -> str:  # fmt: skip
+                    version: str, fe_hash: str,
+                    materials: Sequence[str] = MATERIAL_NAMES) -> str:  # fmt: skip
     """C source of ``grasp_firmware.h``: the sketch's generated configuration.
 
     Parameters
@@ -394,6 +396,9 @@ def firmware_header(config: FirmwareConfig, params: ControllerParams, *, table_c
         CRC-16/CCITT of the PROGMEM tables (:meth:`FixedTables.table_crc`).
     version, fe_hash : str
         grasprom version and the surrogate's FE hash (reported by the ``?`` command).
+    materials : sequence of str
+        The materials the tables cover (:attr:`FixedTables.material_names`): ``M`` refuses the
+        others, naming these (``GF_MATERIAL_LIST``).
 
     Returns
     -------
@@ -448,11 +453,7 @@ def firmware_header(config: FirmwareConfig, params: ControllerParams, *, table_c
         f"#define GF_TABLE_CRC 0x{table_crc:04X}u",
         f"#define GF_STATUS_PERIOD_MS {c.status_period_ms}u",
         f"#define GF_BAUD {c.baud}UL",
-        f"#define GF_BOOT_MATERIAL {MATERIAL_NAMES.index(params.material)} /* {params.material} */",
-        f"#define GF_BOOT_THICKNESS_UM {round(params.thickness_mm * 1000)}",
-        "#define GF_MATERIAL_NAMES {" + ", ".join(f'"{m}"' for m in MATERIAL_NAMES) + "}",
-        f"#define GF_MATERIAL_NAME_LEN {max(len(m) for m in MATERIAL_NAMES) + 1}",
-        f'#define GF_MATERIAL_LIST "{", ".join(MATERIAL_NAMES)}"',
+        *_material_lines(params, materials),
         f'#define GF_COMMAND_LIST "{" ".join(cmd.split()[0] for cmd, _ in COMMANDS)}"',
         "",
     ]
@@ -460,6 +461,19 @@ def firmware_header(config: FirmwareConfig, params: ControllerParams, *, table_c
     lines += _pin_lines(c)
     lines += ["", "#endif", ""]
     return "\n".join(lines)
+
+
+def _material_lines(params: ControllerParams, materials: Sequence[str]) -> list[str]:
+    """The boot case and the material names of ``grasp_firmware.h``: names by code (the index
+    of ``gf_init``), the covered ones in ``GF_MATERIAL_LIST``."""
+    return [
+        f"#define GF_BOOT_MATERIAL {MATERIAL_NAMES.index(params.material)} /* {params.material} */",
+        f"#define GF_BOOT_THICKNESS_UM {round(params.thickness_mm * 1000)}",
+        "/* material names by code (gf_init's index); the tables cover GF_MATERIAL_LIST */",
+        "#define GF_MATERIAL_NAMES {" + ", ".join(f'"{m}"' for m in MATERIAL_NAMES) + "}",
+        f"#define GF_MATERIAL_NAME_LEN {max(len(m) for m in MATERIAL_NAMES) + 1}",
+        f'#define GF_MATERIAL_LIST "{", ".join(m for m in MATERIAL_NAMES if m in materials)}"',
+    ]
 
 
 def _status_lines() -> list[str]:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import shutil
 import tempfile
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TextIO
@@ -33,6 +34,7 @@ from grasprom.export.arduino.tables import FixedTables, build_tables, write_core
 from grasprom.export.arduino.toolchain import build_avr_test, measure_size, run_host, run_simavr
 from grasprom.export.arduino.vectors import default_cases
 from grasprom.export.variables import FLAG_NAMES
+from grasprom.fe import MATERIAL_NAMES
 from grasprom.paths import c_file
 from grasprom.surrogate import Surrogate
 
@@ -94,9 +96,9 @@ Rendering: {rendering}
 - `sh build_arduino_builder.sh` (Debian's arduino-builder, the IDE 1.8.19 toolchain; the IDE
   needs `DECIMAL_DIG` defined, see the script).
 
-Flash: the sketch with the tables of all three materials at every thickness node
+Flash: the sketch with the tables of {covered} at every thickness node
 ({nodes}) fits the Uno's 32 KB; thickness and material are chosen at run time.
-
+{absent}
 ## Wiring ({driver})
 | role | pin | notes |
 |---|---|---|
@@ -187,6 +189,8 @@ def readme_text(params: ControllerParams, tables: FixedTables, config: FirmwareC
         name=SKETCH_NAME,
         version=__version__,
         rendering=rendering_description(params),
+        covered=_covered_text(tables.material_names),
+        absent=_absent_text(tables.material_names),
         nodes=", ".join(f"{m.name} {len(m.thickness_um)}" for m in tables.materials),
         driver=c.driver,
         pins=pins,
@@ -215,6 +219,22 @@ def readme_text(params: ControllerParams, tables: FixedTables, config: FirmwareC
         tol=tables.tol,
         jaw_fs=tables.jaw_fs_N,
     )
+
+
+def _covered_text(names: Sequence[str]) -> str:
+    """``"all three materials"`` or ``"material mr"`` / ``"materials mr and le"``."""
+    if len(names) == len(MATERIAL_NAMES):
+        return "all three materials"
+    return ("material " if len(names) == 1 else "materials ") + " and ".join(names)
+
+
+def _absent_text(names: Sequence[str]) -> str:
+    """The README's sentence on the materials the export leaves out (empty when none)."""
+    absent = [m for m in MATERIAL_NAMES if m not in names]
+    if not absent:
+        return ""
+    return (f"The FE sweep of this export has no {' or '.join(absent)}: `M {absent[0]}` is "
+            f"refused (`ERR M ...`); re-export from a sweep with it to add it.\n")  # fmt: skip
 
 
 def rendering_description(params: ControllerParams) -> str:
@@ -340,7 +360,8 @@ def export_arduino(
     out_dir : str or Path
         Output directory (created).
     surrogate : Surrogate
-        Tissue force table (all three materials).
+        Tissue force table; the export covers the materials it holds (at least
+        ``params.material``), the serial command ``M`` refuses the others.
     params : ControllerParams
         Controller parameters baked into the export; ``params.material`` /
         ``params.thickness_mm`` are the case at boot, changed at run time with the serial
@@ -391,7 +412,8 @@ def _write_package(sk: Path, tables: FixedTables, fw: FirmwareConfig) -> None:
     """Write the sketch folder ``sk`` whole: into a staging folder beside it, renamed at the end
     (files 0644, the script 0755); a failure leaves no partial folder."""
     header = firmware_header(fw, tables.params, table_crc=tables.table_crc(),
-                             version=__version__, fe_hash=tables.fe_hash)  # fmt: skip
+                             version=__version__, fe_hash=tables.fe_hash,
+                             materials=tables.material_names)  # fmt: skip
     sk.parent.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(prefix=f".{sk.name}.", dir=sk.parent))
     try:

@@ -89,12 +89,13 @@ def _packed_counts(
 
 
 def vectors_source(tables: FixedTables, cases: Sequence[VectorCase]) -> str:
-    """C source of ``gf_vectors.h`` for :file:`gf_test_main.c`."""
-    names = [m.name for m in tables.materials]
+    """C source of ``gf_vectors.h`` for :file:`gf_test_main.c` (materials by their code, the
+    index of ``gf_materials``)."""
     rows, body, n = _packed_counts(
         cases,
         lambda c, start: (
-            f"    {{{names.index(c.material)}, {c.thickness_um}, {start}, {len(c.counts)}}}"
+            f"    {{{MATERIAL_NAMES.index(c.material)}, {c.thickness_um}, {start}, "
+            f"{len(c.counts)}}}"
         ),
     )
     return (
