@@ -212,7 +212,7 @@ def _add_model_options(s: argparse.ArgumentParser) -> None:
         "--contact",
         choices=("stick", "frictionless", "coulomb"),
         default=None,
-        help="jaw contact: stick (no sliding, seed 003; 3d default) or frictionless (2d "
+        help="jaw contact: stick (no sliding, Guachi et al. 2020; 3d default) or frictionless (2d "
         "default); coulomb is not implemented yet",
     )
     s.add_argument("--friction", type=float, default=None, metavar="MU", help="Coulomb coefficient")

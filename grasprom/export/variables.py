@@ -138,9 +138,9 @@ class EnumType:
 
 
 _MATERIAL_ITEMS = {
-    "mr": "Mooney-Rivlin, C10 0.085 MPa, C01 0.0565 MPa (seed 003)",
+    "mr": "Mooney-Rivlin, C10 0.085 MPa, C01 0.0565 MPa (Guachi et al. 2020)",
     "nh": "neo-Hookean, small-strain shear modulus of mr (0.283 MPa)",
-    "le": "linear elastic E 5.18 MPa (seed 003), large-strain compressible neo-Hookean form",
+    "le": "linear elastic E 5.18 MPa (Guachi et al. 2020), large-strain compressible neo-Hookean",
 }
 _RENDERING_ITEMS = {
     "coupling": "virtual coupling k_c to a proxy on the tissue curve",

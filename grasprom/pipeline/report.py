@@ -39,7 +39,7 @@ FIGURES = (
     ),
     (
         "transmission",
-        "Fg/Fi vs handle angle theta: derived chain (virtual work) and seed 003's formula as "
+        "Fg/Fi vs handle angle theta: derived chain (virtual work) and Guachi et al.'s formula as "
         "printed (why they differ: the text below)",
     ),
     (
@@ -194,7 +194,7 @@ def _surrogate_section(res: BuildResult) -> list[str]:
 
 
 def _chain_section(res: BuildResult) -> list[str]:
-    """The transmission figure and why seed 003's curve sits below the derived chain."""
+    """The transmission figure and why Guachi et al.'s curve sits below the derived chain."""
     if "transmission" not in res.figures:
         return []
     return [
@@ -211,7 +211,7 @@ def _chain(res: BuildResult) -> Any:
 
 
 def seed_explanation(chain: Any) -> str:
-    """Why seed 003's ``Fg/Fi`` sits below the derived chain, with this chain's numbers.
+    """Why Guachi et al.'s ``Fg/Fi`` sits below the derived chain, with this chain's numbers.
 
     Parameters
     ----------
@@ -228,7 +228,7 @@ def seed_explanation(chain: Any) -> str:
     c = seed_comparison(chain)
     o, k = c["open"], c["closed"]
     return (
-        f"The seed 003 curve is eqs (1)-(4) as printed, with this chain's m/n: it is "
+        f"The Guachi et al. (2020) curve is eqs (1)-(4) as printed, with this chain's m/n: it is "
         f"{o['derived_over_seed']:.1f}x below the derived chain when open ({o['seed_pct']:.1f} "
         f"vs {o['derived_pct']:.1f} %) and {k['derived_over_seed']:.1f}x when closed "
         f"({k['seed_pct']:.1f} vs {k['derived_pct']:.1f} %). Eq (2) takes the rod force as the "

@@ -250,7 +250,7 @@ def test_headline_table_verdicts_follow_the_numbers(built):
 
 
 def test_report_explains_transmission_and_open_handle_force(built):
-    """Issue 16 item 6: the seed-vs-derived gap of the transmission figure and the open-handle
+    """Issue 16 item 6: the paper-vs-derived gap of the transmission figure and the open-handle
     force of the co-simulation are explained with numbers from the chain; the tuning text is
     wrapped."""
     import re
