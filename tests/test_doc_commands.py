@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import os
 import re
-import shutil
 import signal
 import subprocess
 import sys
@@ -33,6 +32,8 @@ from pathlib import Path
 
 import pytest
 import yaml
+
+from tests.checkout import copy_checkout
 
 ROOT = Path(__file__).resolve().parents[1]
 QUICK = re.compile(r"#\s*quick check:\s*(.+)$")
@@ -83,20 +84,6 @@ def as_script(block: str) -> str:
     return "\n".join(as_run(line) for line in joined.splitlines())
 
 
-def _scratch_checkout(dest: Path) -> None:
-    files = subprocess.run(
-        ["git", "-C", str(ROOT), "ls-files", "-z", "--cached", "--others", "--exclude-standard"],
-        capture_output=True,
-        check=True,
-        timeout=60,
-    ).stdout.decode()
-    for rel in filter(None, files.split("\0")):
-        src = ROOT / rel
-        if src.is_file():
-            (dest / rel).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copy2(src, dest / rel)
-
-
 def _run_block(script: str, cwd: Path, log: Path) -> tuple[int, str]:
     """Run one block; return its exit code and output.  The output goes to a file, not a pipe:
     a background process of the block (``dask scheduler &``) would hold a pipe open."""
@@ -144,12 +131,9 @@ def test_every_page_with_commands_is_found():
 
 @pytest.mark.slow
 def test_every_documented_command_runs_as_written(tmp_path):
-    if not shutil.which("git"):
-        pytest.fail("git is needed to copy the checkout") if os.environ.get("CI") else pytest.skip(
-            "git missing"
-        )
     work = tmp_path / "checkout"
-    _scratch_checkout(work)
+    work.mkdir()
+    copy_checkout(work)
     failures = []
     for page in nav_pages():
         for i, block in enumerate(bash_blocks(page), 1):

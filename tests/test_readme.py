@@ -27,6 +27,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.checkout import copy_checkout
+
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 MAIN_JOB = "pip install -e . && grasprom build --out build"
@@ -50,26 +52,6 @@ def test_readme_first_commands_are_the_documented_ones():
     assert 'python -m pip install -e ".[dev]"' in (ROOT / ".ci" / "run").read_text()
 
 
-def _copy_checkout(dest: Path) -> None:
-    """Copy the tracked and untracked-but-not-ignored files of the checkout to ``dest``."""
-    files = None
-    if shutil.which("git"):
-        git = ["git", "-C", str(ROOT), "ls-files", "-z", "--cached", "--others",
-               "--exclude-standard"]  # fmt: skip
-        res = subprocess.run(git, capture_output=True, timeout=60)
-        if res.returncode == 0:
-            files = [f for f in res.stdout.decode().split("\0") if f]
-    if files is None:
-        shutil.copytree(ROOT, dest, ignore=shutil.ignore_patterns(
-            ".git", "build", "*.egg-info", "__pycache__", ".pytest_cache", "report"))  # fmt: skip
-        return
-    for f in files:
-        src = ROOT / f
-        if src.is_file():
-            (dest / f).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copy2(src, dest / f)
-
-
 def _run(cmd: str, cwd: Path, env: dict[str, str], timeout: float) -> subprocess.CompletedProcess:
     res = subprocess.run(["bash", "-c", cmd], cwd=cwd, env=env, capture_output=True, text=True,
                          timeout=timeout)  # fmt: skip
@@ -83,7 +65,7 @@ def test_readme_commands_in_fresh_venv(tmp_path):
     main_cmd, test_cmd = readme_commands()
     repo = tmp_path / "repo"
     repo.mkdir()
-    _copy_checkout(repo)
+    copy_checkout(repo)
     venv = tmp_path / "venv"
     subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=120)
     env = {k: v for k, v in os.environ.items()

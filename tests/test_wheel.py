@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.test_readme import _copy_checkout
+from tests.checkout import copy_checkout
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -34,7 +34,7 @@ def _run(cmd: list[str], cwd: Path, env: dict[str, str], timeout: float) -> str:
 def test_wheel_installs_and_builds_from_another_directory(tmp_path):
     repo = tmp_path / "repo"
     repo.mkdir()
-    _copy_checkout(repo)
+    copy_checkout(repo)
     venv = tmp_path / "venv"
     subprocess.run(
         [sys.executable, "-m", "venv", "--system-site-packages", str(venv)], check=True, timeout=120
