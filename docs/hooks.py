@@ -113,14 +113,19 @@ def example_doc(script: Path) -> str:
     return ast.get_docstring(ast.parse(script.read_text())) or ""
 
 
-def run_example(script: str, extra: list[str], out: Path) -> str:
-    """Run one example as the page shows it; return its output; raise when it fails."""
-    cmd = [sys.executable, f"examples/{script}", "--out", str(out), *extra]
+def run_checked(cmd: list[str], what: str) -> str:
+    """Run ``cmd`` in the checkout (Agg backend); its stdout; RuntimeError naming ``what``."""
     env = dict(os.environ, MPLBACKEND="Agg")
     res = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, env=env, timeout=900)
     if res.returncode != 0:
-        raise RuntimeError(f"example {script} failed ({res.returncode}):\n{res.stderr[-2000:]}")
-    lines = res.stdout.rstrip().splitlines()
+        raise RuntimeError(f"{what} failed ({res.returncode}):\n{res.stderr[-2000:]}")
+    return res.stdout
+
+
+def run_example(script: str, extra: list[str], out: Path) -> str:
+    """Run one example as the page shows it; return its output; raise when it fails."""
+    cmd = [sys.executable, f"examples/{script}", "--out", str(out), *extra]
+    lines = run_checked(cmd, f"example {script}").rstrip().splitlines()
     if len(lines) > MAX_OUTPUT_LINES:
         cut = len(lines) - MAX_OUTPUT_LINES
         lines = lines[:MAX_OUTPUT_LINES] + [f"... ({cut} more lines)"]
@@ -157,18 +162,16 @@ def gallery(config, files: Files) -> str:
 def build_figures(config, files: Files) -> None:
     """Run the main job on the shipped data; add its figures as ``figures/<name>.png``."""
     with tempfile.TemporaryDirectory(prefix="grasprom-docs-build-") as tmp:
-        cmd = [sys.executable, "-m", "grasprom", "build", "--out", tmp, "--quiet"]
-        env = dict(os.environ, MPLBACKEND="Agg")
-        res = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, env=env, timeout=900)
-        if res.returncode != 0:
-            raise RuntimeError(f"grasprom build failed ({res.returncode}):\n{res.stderr[-2000:]}")
+        run_checked([sys.executable, "-m", "grasprom", "build", "--out", tmp, "--quiet"],
+                    "grasprom build")  # fmt: skip
         for png in sorted((Path(tmp) / "figures").glob("*.png")):
             files.append(File.generated(config, f"figures/{png.name}", content=png.read_bytes()))
 
 
 def on_files(files: Files, config) -> Files:
     """Add the generated pages (CLI, API, gallery) to the site."""
-    sys.path.insert(0, str(ROOT))
+    if str(ROOT) not in sys.path:  # `mkdocs serve` calls this on every rebuild
+        sys.path.insert(0, str(ROOT))
     files.append(File.generated(config, "cli.md", content=cli_page()))
     build_figures(config, files)
     files.append(File.generated(config, "api/index.md", content=api_index()))
