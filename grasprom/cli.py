@@ -198,6 +198,22 @@ def _add_case_geometry(s: argparse.ArgumentParser, d: dict) -> None:
         metavar="N",
         help=f"mesh divisions along the quarter circumference (default {d['n_circ']})",
     )
+    s.add_argument(
+        "--grading",
+        type=float,
+        default=None,
+        metavar="RATIO",
+        help="2D mesh: largest / smallest element along the circumference, refining toward the "
+        f"side fold (1 = uniform; default {d['grading']:g})",
+    )
+    s.add_argument(
+        "--radial-grading",
+        type=float,
+        default=None,
+        metavar="RATIO",
+        help="2D mesh: outermost / innermost layer thickness, refining toward the inner wall "
+        f"(1 = uniform; default {d['radial_grading']:g})",
+    )
 
 
 def _add_model_options(s: argparse.ArgumentParser) -> None:
@@ -462,8 +478,13 @@ def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
             force_cap_N=args.force_cap,
             n_layers=args.n_layers,
             n_circ=args.n_circ,
+            grading=args.grading,
+            radial_grading=args.radial_grading,
         )
         if args.model == "3d":
+            for flag, v in (("--grading", args.grading), ("--radial-grading", args.radial_grading)):
+                if v is not None:
+                    raise SweepInputError(f"{flag}: a 2D mesh option (--model 2d)")
             mesh = {k: v for k, v in (("n_layers", args.n_layers), ("n_circ", args.n_circ)) if v}
             specs = to_3d(specs, opts3d, mesh)
         else:

@@ -76,6 +76,24 @@ ROWS: list[tuple[str, list[str], tuple[str, str | bytes] | None, str]] = [
     ),
     ("sweep-layers-zero", [*SWEEP, "--thickness", "1.4", "--n-layers", "0"], None, "--n-layers"),
     ("sweep-circ-two", [*SWEEP, "--thickness", "1.4", "--n-circ", "2"], None, "--n-circ"),
+    (
+        "sweep-grading-below-1",
+        [*SWEEP, "--thickness", "1.4", "--grading", "0.5"],
+        None,
+        "--grading",
+    ),
+    (
+        "sweep-radial-grading-nan",
+        [*SWEEP, "--thickness", "1.4", "--radial-grading", "nan"],
+        None,
+        "--radial-grading",
+    ),
+    (
+        "sweep-grading-3d",
+        [*SWEEP, "--thickness", "1.4", "--model", "3d", "--grading", "2"],
+        None,
+        "--grading",
+    ),
     ("sweep-model", [*SWEEP, "--thickness", "1.4", "--model", "4d"], None, "--model"),
     ("sweep-contact-2d", [*SWEEP, "--thickness", "1.4", "--contact", "coulomb"], None, "--contact"),
     (

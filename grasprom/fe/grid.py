@@ -279,6 +279,8 @@ def build_grid(
     n_circ: int | None = None,
     out_dir: str | os.PathLike[str] | None = None,
     max_cases: int | None = None,
+    grading: float | None = None,
+    radial_grading: float | None = None,
 ) -> list[CaseSpec]:
     """Build and validate the thickness x material grid of cases.
 
@@ -296,6 +298,9 @@ def build_grid(
     n_layers, n_circ : int, optional
         Mesh divisions through the wall / along the quarter circumference; None takes the
         :class:`~grasprom.fe.model2d.MeshSpec` default.
+    grading, radial_grading : float, optional
+        2D mesh grading toward the fold corner: largest / smallest circumferential element and
+        outermost / innermost layer (>= 1, 1 = uniform); None takes the default.
     out_dir : str or os.PathLike, optional
         If given, created if needed and checked for writability.
     max_cases : int, optional
@@ -334,8 +339,15 @@ def build_grid(
         "force_cap_N": force_cap_N,
     }
     _check_options(lengths, n_layers, n_circ)
+    _check_grading(grading, radial_grading)
     kw = {k: float(v) for k, v in lengths.items() if v is not None}
-    mesh_kw = {k: v for k, v in (("n_layers", n_layers), ("n_circ", n_circ)) if v is not None}
+    given = (
+        ("n_layers", n_layers),
+        ("n_circ", n_circ),
+        ("grading", grading),
+        ("radial_grading", radial_grading),
+    )
+    mesh_kw = {k: v for k, v in given if v is not None}
     _check_geometry(t_list, kw)
     mesh = MeshSpec(**mesh_kw)
     specs = [CaseSpec(material=m, thickness_mm=t, mesh=mesh, **kw) for m in mats for t in t_list]
@@ -384,6 +396,15 @@ def _check_options(
             f"--n-circ: the model needs at least {MIN_CIRC_2D} divisions along the quarter "
             f"circumference (coarser meshes cannot follow the jaw contact), got {n_circ}"
         )
+
+
+def _check_grading(grading: float | None, radial_grading: float | None) -> None:
+    """Mesh gradings: finite numbers in [1, 100]."""
+    for name, v in (("--grading", grading), ("--radial-grading", radial_grading)):
+        if v is None:
+            continue
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 1.0 <= v <= 100.0:
+            raise SweepInputError(f"{name}: must be a number in [1, 100] (1 = uniform), got {v!r}")
 
 
 def _check_geometry(t_list: list[float], kw: dict[str, float]) -> None:

@@ -90,29 +90,49 @@ class MeshSpec:
     n_layers : int
         Element layers through the wall thickness (default 4).
     n_circ : int
-        Element divisions along the quarter circumference (default 64).  In the crease band
-        (gap 2 t .. 4 t, where the flattened wall folds, snaps inward and the walls meet) the
-        default 4 x 64 deviates from its 2x refinement by a median 0.9 % (t = 1.4 mm; 2 x 32:
-        3.1 %), but by up to 8-10 % next to the snap, which lands up to ~0.1 mm apart on the
-        two meshes (``benchmarks/bench_fe.py --crease``).  Graded meshes of the same cost move
-        the snap further.
+        Element divisions along the quarter circumference (default 64).
     grading : float
         Ratio of the largest to the smallest circumferential element (geometric progression,
-        1 = uniform); > 1 refines toward the side fold (``theta = 0``), where the wall bends
-        hardest, and coarsens toward the top, which only flattens.
+        1 = uniform; default 8); > 1 refines toward the side fold (``theta = 0``), where the
+        wall bends hardest and the inner surface creases, and coarsens toward the top, which
+        only flattens.
     element : str
         ``"P2B/P1"`` (default) or ``"P2/P0"``, see :func:`discretise`.
+    radial_grading : float
+        Ratio of the outermost to the innermost layer thickness (default 4): thin layers at the
+        inner wall, where the fold's inner surface creases.
+
+    Notes
+    -----
+    In the crease band (gap 2 t .. 4 t) the inner surface of the side fold is compressed past
+    the creasing threshold of a rubber-like solid and a crease forms at the fold corner.  How
+    early a mesh lets it form is set by the element size at that corner (a uniform 4 x 64 mesh,
+    0.35 mm there, holds the smooth fold to gap 4.5 mm at t = 1.4 mm and then snaps by 5.5 %;
+    8 x 128 creases at 4.82 mm by 1.6 %).  The default grades both ways toward the corner
+    (about 0.1 mm there) and places the crease by energy (:attr:`SolverSettings.maxwell_crease`);
+    against its 2x refinement the band converges within 3 %
+    (``python benchmarks/bench_fe.py --crease``, docs/fe-model.md).
     """
 
     n_layers: int = 4
     n_circ: int = 64
-    grading: float = 1.0
+    grading: float = 8.0
     element: str = "P2B/P1"
+    radial_grading: float = 4.0
 
     def refined(self, factor: int = 2) -> MeshSpec:
         """The same mesh with every element split ``factor`` times in each direction."""
         g = self.grading ** ((self.n_circ * factor - 1) / max(self.n_circ - 1, 1) / factor)
-        return MeshSpec(self.n_layers * factor, self.n_circ * factor, g, self.element)
+        nl = self.n_layers
+        rg = self.radial_grading ** ((nl * factor - 1) / max(nl - 1, 1) / factor)
+        return MeshSpec(nl * factor, self.n_circ * factor, g, self.element, rg)
+
+    def layer_edges(self, inner_radius: float, thickness: float) -> np.ndarray:
+        """Radii (mm) of the layer boundaries, inner to outer wall."""
+        nl = int(self.n_layers)
+        q = float(self.radial_grading) ** (1.0 / max(nl - 1, 1))
+        dr = q ** np.arange(nl)
+        return inner_radius + thickness * np.concatenate([[0.0], np.cumsum(dr)]) / dr.sum()
 
 
 @dataclass(frozen=True)
@@ -149,6 +169,14 @@ class SolverSettings:
         solved by proximal-point relaxation (:func:`_relax`); 0 turns that off.
     max_relax : int
         Proximal steps allowed for one snap.
+    crease_step_fraction : float
+        In the crease band (walls not met, gap below 4 t) a jaw step is at most this fraction of
+        the wall thickness, so the fold is followed closely and the crease onset is located.
+    maxwell_crease : bool
+        Place a snap in the crease band where the snapped (creased) state first has less
+        strain energy than the smooth fold at the same jaw height (Maxwell's rule,
+        :func:`_crease_onset`), not where the smooth fold loses stability: that point depends
+        on the mesh (a finer fold tip holds the metastable smooth fold longer and snaps harder).
     """
 
     dh_initial_mm: float = 0.05
@@ -163,6 +191,8 @@ class SolverSettings:
     land_on_gaps_mm: tuple[float, ...] = ()
     relax_below_mm: float = 2e-3
     max_relax: int = 200
+    crease_step_fraction: float = 0.025
+    maxwell_crease: bool = True
 
 
 @dataclass(frozen=True)
@@ -248,7 +278,7 @@ def ring_mesh(outer_radius: float, thickness: float, mesh: MeshSpec):
     nl, nc = int(mesh.n_layers), int(mesh.n_circ)
     if nl < 1 or nc < 4:
         raise ValueError(f"mesh too coarse: n_layers={nl} (>= 1), n_circ={nc} (>= 4)")
-    r = np.linspace(outer_radius - thickness, outer_radius, nl + 1)
+    r = mesh.layer_edges(outer_radius - thickness, thickness)
     q = float(mesh.grading) ** (1.0 / max(nc - 1, 1))
     ds = q ** np.arange(nc)
     th = 0.5 * np.pi * np.concatenate([[0.0], np.cumsum(ds)]) / ds.sum()
@@ -336,7 +366,12 @@ def discretise(outer_radius: float, thickness: float, mesh: MeshSpec) -> _Discre
     ndof = 2 * X.shape[0]
     sym_x, sym_y, on_y0 = _symmetry_dofs(basis, X, outer_radius, bubble)
     outer_edges, outer_nodes, inner_nodes = _wall_nodes(
-        m, basis, outer_radius, thickness, mesh.n_layers, on_y0
+        m,
+        basis,
+        outer_radius,
+        thickness,
+        float(np.diff(mesh.layer_edges(0.0, thickness)).min()),
+        on_y0,
     )
     rows, cols, scatter, indptr, diag_pos = _csr_map(edofs, ndof)
     return _Discretisation(
@@ -409,14 +444,13 @@ def _symmetry_dofs(basis, X: np.ndarray, outer_radius: float, bubble: bool):
     return 2 * np.flatnonzero(on_x0), 2 * np.flatnonzero(on_y0) + 1, on_y0
 
 
-def _wall_nodes(m, basis, outer_radius: float, thickness: float, n_layers: int, on_y0):
+def _wall_nodes(m, basis, outer_radius: float, thickness: float, h_r: float, on_y0):
     """Outer-wall edges (end, end, mid node triples) and nodes, and the inner-wall nodes off
     ``y = 0`` (contact candidates with the jaw and the symmetry floor)."""
     rin = outer_radius - thickness
     on_bnd = np.zeros(m.facets.shape[1], dtype=bool)
     on_bnd[m.boundary_facets()] = True
     rmid = np.hypot(*m.p[:, m.facets].mean(axis=1))
-    h_r = thickness / n_layers
     outer_f = np.flatnonzero(on_bnd & (rmid > outer_radius - 0.25 * h_r))
     inner_f = np.flatnonzero(on_bnd & (rmid < rin + 0.25 * h_r))
 
@@ -710,6 +744,72 @@ def _advance(disc, material, state: _State, h: float, settings: SolverSettings, 
     return _relax(disc, material, state, h, settings, fscale)
 
 
+def _hermite_energy(branch: list[tuple[float, float, float]], h: float) -> float:
+    """Strain energy (N mm/mm) of the followed branch at jaw height ``h`` (mm), cubic Hermite
+    through the recorded steps ``(h, energy, force_q)`` (``dE/dh = -force_q``); extrapolated
+    from the last interval below the last step."""
+    hs = np.array([b[0] for b in branch])
+    i = int(np.clip(np.searchsorted(-hs, -h) - 1, 0, len(branch) - 2))
+    (h0, e0, f0), (h1, e1, f1) = branch[i], branch[i + 1]
+    d = h1 - h0
+    s = (h - h0) / d
+    h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
+    h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
+    return h00 * e0 + h10 * d * (-f0) + h01 * e1 + h11 * d * (-f1)
+
+
+def _crease_onset(
+    disc, material, snapped: _State, h_snap: float, branch, t: float, settings, fscale, landing
+):
+    """Continue a snapped (creased) state back to larger jaw heights while its strain energy
+    stays below the smooth branch's (``branch``, :func:`_hermite_energy`), up to the top of the
+    crease band (``h = 2 t``, ``t`` the wall thickness in mm).
+
+    Back steps are a quarter of the band's forward step and land on the jaw heights ``landing``
+    (mm) they pass; the crossing (the Maxwell point) is bisected 10 times.  Returns
+    ``[(h, state, newton_iterations), ...]`` from the largest ``h`` down to just above
+    ``h_snap``; empty if the snapped state has no less energy than the branch already one back
+    step up (a force drop along one branch, not a jump to another).
+    """
+    dh = 0.25 * settings.crease_step_fraction * t
+    h_top = 2.0 * t
+    out: list[tuple[float, _State, int]] = []
+    cur, h = snapped, h_snap
+
+    def below(state: _State, hh: float) -> bool:
+        e_s = _hermite_energy(branch, hh)
+        return energy(disc, material, state.u) < e_s - 1e-10 * abs(e_s)
+
+    while h + dh <= h_top:
+        h_next = min([hc for hc in landing if h + 1e-12 < hc < h + dh], default=h + dh)
+        try:
+            nxt, it = _solve_step(disc, material, cur, h_next, settings, fscale)
+        except _STEP_ERRORS:
+            break
+        if not below(nxt, h_next):
+            if not out:  # not below one back step up: the drop was no snap to a new branch
+                break
+            lo, hi, lo_state, spent = h, h_next, cur, it  # bisect the crossing
+            for _ in range(10):
+                mid = 0.5 * (lo + hi)
+                try:
+                    sm, it = _solve_step(disc, material, lo_state, mid, settings, fscale)
+                except _STEP_ERRORS:
+                    break
+                spent += it
+                if below(sm, mid):
+                    lo, lo_state = mid, sm
+                else:
+                    hi = mid
+            if lo > h:
+                out.append((lo, lo_state, spent))
+            break
+        out.append((h_next, nxt, it))
+        cur, h = nxt, h_next
+    out.sort(key=lambda r: -r[0])
+    return out
+
+
 def _relax(disc, material, state: _State, h: float, settings: SolverSettings, fscale):
     """Equilibrium at jaw height ``h`` (mm) past a snap, by proximal-point iteration.
 
@@ -796,6 +896,7 @@ def run_case(spec: CaseSpec, progress=None) -> CaseResult:
     total_newton = 0
     fail_log: list[dict] = []
     force_prev = 0.0
+    branch = [(h, 0.0, 0.0)]  # (jaw height mm, strain energy, quarter force N/mm) per row
     status = "partial"
     reason = ""
     while True:
@@ -811,10 +912,29 @@ def run_case(spec: CaseSpec, progress=None) -> CaseResult:
             dh *= 0.25
             continue
         total_newton += iters
+        row = _step_row(disc, new_state, h_new, R, scale_N, iters)
+        e_new = energy(disc, material, new_state.u)
+        if (
+            s.maxwell_crease
+            and t < h_new < 2.0 * t
+            and row["force_N"] < force_prev * (1.0 - 1e-4)
+            and len(branch) >= 2
+        ):
+            back = _crease_onset(disc, material, new_state, h_new, branch, t, s, fscale, landing)
+            if back:
+                h_m = back[0][0]
+                keep = [k for k, b in enumerate(branch) if b[0] > h_m]
+                rows = [rows[k] for k in keep]
+                branch = [branch[k] for k in keep]
+                for hb, sb, itb in back:
+                    total_newton += itb
+                    rb = _step_row(disc, sb, hb, R, scale_N, itb)
+                    rows.append(rb)
+                    branch.append((hb, energy(disc, material, sb.u), rb["force_N"] / scale_N))
         state = new_state
         h = h_new
-        row = _step_row(disc, state, h, R, scale_N, iters)
         rows.append(row)
+        branch.append((h, e_new, row["force_N"] / scale_N))
         force_N = row["force_N"]
         if progress is not None:
             progress(2 * h, force_N)
@@ -886,6 +1006,8 @@ def _limit_step(
     dh = min(dh, s.dh_max_mm, h - h_end)
     if h > t:  # resolve the walls meeting: approach h = t geometrically
         dh = min(dh, max(0.01 * t, s.approach_fraction * (h - t)))
+    if t < h <= 2.0 * t + 1e-12:  # crease band
+        dh = min(dh, s.crease_step_fraction * t)
     for hc in landing:
         if h - dh < hc < h - 1e-12:
             dh = h - hc

@@ -155,7 +155,7 @@ def test_plane_strain_configuration_reproduces_the_2d_model():
         "mr",
         1.4,
         closed_gap_mm=10.0,
-        mesh=MeshSpec(n_layers=2, n_circ=16),
+        mesh=MeshSpec(n_layers=2, n_circ=16, grading=1.0, radial_grading=1.0),
         solver=SolverSettings(land_on_gaps_mm=gaps),
     )
     r2 = run_case(s2)
