@@ -21,8 +21,9 @@ Usage::
         [--ool 12] [--trials 4] [--workers 2] [--gap-channel] [--json results.json] \
         [--acquisition ideal|coarse|jitter|500hz|2khz|realistic] [--tremor DEG]
 
-About 1.5 minutes on 2 cores for the default 102 cases (77-94 s measured, with or without
-``--gap-channel``).
+About 5-6 minutes with ``--workers 1`` for the default 102 cases (280-360 s measured for
+``ideal`` and ``realistic`` since the interval likelihood of the encoder quantum, which
+evaluates every model at both ends of the resting levels; 103-108 s before).
 """
 
 from __future__ import annotations
