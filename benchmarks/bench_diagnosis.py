@@ -21,8 +21,9 @@ Usage::
         [--ool 12] [--trials 4] [--workers 2] [--gap-channel] [--json results.json] \
         [--acquisition ideal|coarse|jitter|500hz|2khz|realistic] [--tremor DEG]
 
-About 1.5 minutes on 2 cores for the default 102 cases (77-94 s measured, with or without
-``--gap-channel``).
+About 5-6 minutes with ``--workers 1`` for the default 102 cases (280-360 s measured for
+``ideal`` and ``realistic`` since the interval likelihood of the encoder quantum, which
+evaluates every model at both ends of the resting levels; 103-108 s before).
 """
 
 from __future__ import annotations
@@ -147,10 +148,10 @@ def run_case(case: dict, n_trials: int = 4, gap_channel: bool = False,
         warnings.simplefilter("ignore")
         d = diagnose(trials, s, chain)
     v = d.report["verdict"]
-    fresh = (
-        fresh_trial_shrink(unseen, case["seed"], acquisition, d.augmented)
+    fresh, fresh_g = (
+        _fresh_shrinks(unseen, case["seed"], acquisition, d.augmented)
         if v["label"] == "explained" and d.augmented is not None
-        else None
+        else (None, None)
     )
     return {
         **case,
@@ -169,6 +170,7 @@ def run_case(case: dict, n_trials: int = 4, gap_channel: bool = False,
         "where": d.report["where"],
         "by_block": d.report["baseline"]["by_block"],
         "fresh_shrink": fresh,
+        "fresh_shrink_gaussian": fresh_g,
         "seconds": time.perf_counter() - t0,
     }
 
@@ -176,15 +178,31 @@ def run_case(case: dict, n_trials: int = 4, gap_channel: bool = False,
 def fresh_trial_shrink(unseen, seed: int, acquisition: str, augmented: dict) -> float:
     """Independently measured shrink: the augmented model against the baseline on one more
     trial of the same truth (``unseen``, the synthetic trial after the diagnosed ones of the
-    case ``seed``; recorded with the same ``acquisition``):
-    ``1 - sqrt(max(S_aug, 0) / S_base)``, ``S`` the weighted systematic chi2 (sum of
-    (residual / sigma)^2 less the sample count) on the analysis grid, ``sigma`` the
-    diagnosis' per-sample uncertainty (sensor noise, the angle quantum through
-    the local stiffness, 1 % of the force): < 0 when the augmented model predicts the new trial
-    worse than the baseline.  Unweighted, the holds dominate: there half an encoder count of a
-    0.0041 deg encoder is up to 3 N of handle force on the wall-contact rise."""
+    case ``seed``; recorded with the same ``acquisition``), weighted as the diagnosis weighs
+    its samples (:mod:`grasprom.gap.likelihood`): ``1 - sqrt(max(S_aug, 0) / S_base)``, ``S``
+    the systematic chi2 ``sum z^2 - sum E[z^2]`` on the analysis grid, where the angle rests in
+    an encoder level the residual counted beyond the force range of both models over the level
+    (``AugmentedModel.handle_force_N`` at the level's ends), elsewhere ``r / sigma``; the models
+    see the angle reconstructed between the encoder counts (as the diagnosis): < 0 when the
+    augmented model predicts the new trial worse than the baseline.  See
+    :func:`fresh_trial_shrink_gaussian` for the figure of earlier versions."""
+    return _fresh_shrinks(unseen, seed, acquisition, augmented)[0]
+
+
+def fresh_trial_shrink_gaussian(unseen, seed: int, acquisition: str, augmented: dict) -> float:
+    """:func:`fresh_trial_shrink` as measured before the interval likelihood: the models at the
+    recorded angle, every residual weighted by the Gaussian sigma (sensor noise, the angle
+    quantum through the local stiffness, 1 % of the force) with ``S = chi2 - N``.  At rests the
+    level's centre is then taken for the true angle: half a count of a 0.1 deg encoder is tens
+    of N on the wall-contact rise."""
+    return _fresh_shrinks(unseen, seed, acquisition, augmented)[1]
+
+
+def _fresh_shrinks(unseen, seed: int, acquisition: str, augmented: dict) -> tuple[float, float]:
+    """(interval-likelihood, Gaussian) fresh-trial shrink of :func:`fresh_trial_shrink`."""
     from grasprom.chain import kinematics as kin
     from grasprom.gap import AugmentedModel, validate_trial
+    from grasprom.gap.likelihood import interval_z
     from grasprom.gap.prepare import prepare_trial
 
     s = _surrogate()
@@ -193,35 +211,47 @@ def fresh_trial_shrink(unseen, seed: int, acquisition: str, augmented: dict) -> 
     data = acquire(unseen.data, acquisition, rng)
     tr = validate_trial(data, unseen.sidecar, "fresh", chain, s)
     effects = {e["name"]: dict(e["params"]) for e in augmented["effects"]}
-    args = (tr.time_s, tr.theta_deg, tr.thickness_mm, tr.material, s)
-    f_aug = AugmentedModel(effects, chain).handle_force_N(*args)
-    f_base = AugmentedModel({}, chain).handle_force_N(*args)
     p = prepare_trial(tr, s, chain)
     idx = np.searchsorted(tr.time_s, p.t)
-    s_b = float(np.sum(((p.F - f_base[idx]) / p.sigma) ** 2)) - p.F.size
-    s_a = float(np.sum(((p.F - f_aug[idx]) / p.sigma) ** 2)) - p.F.size
-    if s_b <= 0:
-        return float("nan")
-    return 1.0 - float(np.sqrt(max(s_a, 0.0) / s_b))
+    lo, hi = kin.theta_range_deg(chain)
+
+    def forces(model, theta):
+        return model.handle_force_N(tr.time_s, theta, tr.thickness_mm, tr.material, s)[idx]
+
+    out = []
+    aug, base = AugmentedModel(effects, chain), AugmentedModel({}, chain)
+    hw = p.raw_rest_halfwidth_deg
+    ends = [np.clip(p.raw_theta + k * hw, lo, hi) for k in (-1.0, 1.0)]
+    s_int = []
+    for m in (base, aug):
+        c = forces(m, p.raw_theta)
+        z = interval_z(p.F, c, (forces(m, ends[0]), forces(m, ends[1])), p.sigma_fit)
+        s_int.append(float(z @ z - np.sum(p.null)))
+    s_gau = []
+    for m in (base, aug):
+        r = (p.F - forces(m, tr.theta_deg)) / p.sigma
+        s_gau.append(float(r @ r) - p.F.size)
+    for s_b, s_a in (s_int, s_gau):
+        out.append(float("nan") if s_b <= 0 else 1.0 - float(np.sqrt(max(s_a, 0.0) / s_b)))
+    return out[0], out[1]
 
 
-def _fresh_summary(results: list[dict]) -> dict:
-    """Median / worst of the independently measured shrink and its negative, confident cases."""
-    fr = [
-        r for r in results if r.get("fresh_shrink") is not None and np.isfinite(r["fresh_shrink"])
-    ]
-    vals = [r["fresh_shrink"] for r in fr]
+def _fresh_summary(results: list[dict], key: str = "fresh_shrink", prefix: str = "fresh") -> dict:
+    """Median / worst of the independently measured shrink (``key`` of the results) and its
+    negative, confident cases (summary keys ``prefix_...``)."""
+    fr = [r for r in results if r.get(key) is not None and np.isfinite(r[key])]
+    vals = [r[key] for r in fr]
     neg = [
         f"{'+'.join(r['effects']) or 'null'} -> {'+'.join(r['predicted'])} "
-        f"(conf {r['confidence']:.2f}, fresh shrink {r['fresh_shrink']:.2f})"
+        f"(conf {r['confidence']:.2f}, fresh shrink {r[key]:.2f})"
         for r in fr
-        if r["fresh_shrink"] < 0 and r["confidence"] >= 0.5
+        if r[key] < 0 and r["confidence"] >= 0.5
     ]
     return {
-        "fresh_n": len(vals),
-        "fresh_median": float(np.median(vals)) if vals else float("nan"),
-        "fresh_worst": float(np.min(vals)) if vals else float("nan"),
-        "fresh_negative_conf_ge_0.5": neg,
+        f"{prefix}_n": len(vals),
+        f"{prefix}_median": float(np.median(vals)) if vals else float("nan"),
+        f"{prefix}_worst": float(np.min(vals)) if vals else float("nan"),
+        f"{prefix}_negative_conf_ge_0.5": neg,
     }
 
 
@@ -315,6 +345,7 @@ def summarise(results: list[dict]) -> dict:
         "top1_first_effect_in_truth": float(np.mean(first_ok)) if lib else float("nan"),
         "median_shrink": float(np.median(shr)) if shr else float("nan"),
         **_fresh_summary(results),
+        **_fresh_summary(results, "fresh_shrink_gaussian", "fresh_gaussian"),
         "median_shrink_rms": float(np.median([r["shrink_rms"] for r in lib])) if lib else None,
         "null_to_none": float(np.mean([r["label"] == "none" for r in nulls]))
         if nulls
@@ -423,6 +454,12 @@ def print_report(results: list[dict]) -> None:
         f"n = {s['fresh_n']}): median {100 * s['fresh_median']:.1f} %, worst "
         f"{100 * s['fresh_worst']:.1f} %; negative with confidence >= 0.5: "
         f"{len(s['fresh_negative_conf_ge_0.5'])} {s['fresh_negative_conf_ge_0.5']}"
+    )
+    print(
+        f"    weighted as before the interval likelihood (Gaussian quantum, recorded angle): "
+        f"median {100 * s['fresh_gaussian_median']:.1f} %, worst "
+        f"{100 * s['fresh_gaussian_worst']:.1f} %; negative with confidence >= 0.5: "
+        f"{len(s['fresh_gaussian_negative_conf_ge_0.5'])}"
     )
     print(f"  null -> none: {100 * s['null_to_none']:.1f} %")
     print(

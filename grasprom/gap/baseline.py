@@ -2,8 +2,11 @@
 force at the measured angle) on the trials in contact, its systematic gap ratio, and where it
 lies (by phase, direction, trial condition and block of the chain).
 
-``chi2 = sum (r_i / s_i)^2``; the *systematic gap ratio* ``rho = chi2 / N - 1`` is the systematic
-residual variance in units of the noise variance (0 for a perfect model).
+``chi2 = sum z_i^2`` (``z_i = r_i / s_i`` beyond the force range of the encoder level where the
+angle rests in one: :mod:`~grasprom.gap.likelihood`); the *systematic gap ratio*
+``rho = (chi2 - N0) / N`` is the systematic residual variance in units of the noise variance (0
+for a perfect model), ``N0 = sum E[z_i^2]`` the chi2 a correct model leaves (``N`` without
+resting samples).
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ class BaselineGap:
     noise_N : float
         Median handle sensor noise (N).
     chi2, rho, systematic_chi2 : float
-        Weighted chi2 (1), systematic gap ratio ``chi2 / N - 1`` and ``chi2 - N``.
+        Weighted chi2 (1), systematic gap ratio ``(chi2 - N0) / N`` and ``chi2 - N0``.
     labels, dlabels : list of ndarray
         Phase and direction labels per trial.
     conditions : list of dict
@@ -47,6 +50,12 @@ class BaselineGap:
         The ``baseline`` section of the report (``by_block`` included).
     block_how : str
         How the jaw-force residual was attributed without a gap channel.
+    z : list of ndarray
+        The baseline's ``z`` per trial (1).
+    null : list of ndarray
+        The expected ``z^2`` of a correct model per sample, per trial (1).
+    n_null : float
+        ``N0``: their sum, the chi2 a correct model leaves (1).
     """
 
     residuals: list[FloatArray]
@@ -60,6 +69,9 @@ class BaselineGap:
     conditions: list[dict[str, Any]]
     summary: dict[str, Any] = field(default_factory=dict)
     block_how: str = ""
+    z: list[FloatArray] = field(default_factory=list)
+    null: list[FloatArray] = field(default_factory=list)
+    n_null: float = 0.0
 
 
 def trial_conditions(
@@ -135,6 +147,17 @@ def _summary(preps: Sequence[PreparedTrial], gap: BaselineGap) -> dict[str, Any]
     }
 
 
+def baseline_z(p: PreparedTrial) -> FloatArray:
+    """The baseline's ``z`` of every sample (:mod:`~grasprom.gap.likelihood`; the plain
+    ``r / sigma`` of a trial prepared without the interval)."""
+    return (p.F - p.F0) / p.sigma if p.z0 is None else p.z0
+
+
+def null_counts(p: PreparedTrial) -> FloatArray:
+    """The expected ``z^2`` of every sample under a correct model (1 without the interval)."""
+    return np.ones(p.t.size) if p.null is None else p.null
+
+
 def baseline_gap(
     preps: Sequence[PreparedTrial], surrogate: Surrogate, chain: kin.ChainParams
 ) -> BaselineGap:
@@ -153,17 +176,23 @@ def baseline_gap(
     """
     n = int(sum(p.t.size for p in preps))
     res0 = [p.F - p.F0 for p in preps]
-    chi0 = float(sum(np.sum((r / p.sigma) ** 2) for r, p in zip(res0, preps)))
+    z0 = [baseline_z(p) for p in preps]
+    nulls = [null_counts(p) for p in preps]
+    n0 = float(sum(np.sum(x) for x in nulls))
+    chi0 = float(sum(z @ z for z in z0))
     gap = BaselineGap(
         residuals=res0,
         n_samples=n,
         noise_N=float(np.median([p.noise_N for p in preps])),
         chi2=chi0,
-        rho=chi0 / n - 1.0,
-        systematic_chi2=chi0 - n,
+        rho=(chi0 - n0) / n,
+        systematic_chi2=chi0 - n0,
         labels=[p.phase for p in preps],
         dlabels=[p.direction for p in preps],
         conditions=trial_conditions(preps, chain),
+        z=z0,
+        null=nulls,
+        n_null=n0,
     )
     gap.summary = _summary(preps, gap)
     gap.summary["by_block"], gap.block_how = block_analysis(preps, surrogate, chain)

@@ -241,7 +241,10 @@ def _add_jaw_channel(
         acc.parts["tissue"][tt.k] += hc - h_gm
         acc.noise_ss["tissue"] += jaw_noise
     else:
-        jp = replace(p, F=hc, sigma=np.sqrt(tt.s_model2 + jaw_var + 1e-8))
+        # the jaw path keeps the Gaussian quantum term (no interval likelihood)
+        jp = replace(p, F=hc, sigma=np.sqrt(tt.s_model2 + jaw_var + 1e-8), sigma_fit=None,
+                     rest_halfwidth_deg=None, raw_rest_halfwidth_deg=None, z0=None,
+                     null=None)  # fmt: skip
         acc.jaw_only.append((tt.k, jp))
         acc.jaw_only_noise += jaw_noise
     fric = np.column_stack([p.motion_dir, p.motion_dir * np.abs(fj_raw[tt.idx] * tt.gp), p.v_mm_s])

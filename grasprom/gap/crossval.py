@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from grasprom.chain import kinematics as kin
-from grasprom.gap.fit import fit_effects, fit_params, predict
+from grasprom.gap.fit import fit_effects, fit_params, predict_z
 from grasprom.gap.prepare import PreparedTrial
 from grasprom.gap.trials import FloatArray
 from grasprom.surrogate import Surrogate
@@ -25,9 +25,10 @@ class CrossValidation:
 
     effects: tuple[str, ...]
     residuals: list[FloatArray]  # held-out residual per trial (N)
-    chi2: float
+    chi2: float  # sum of z^2 (interval likelihood, :mod:`grasprom.gap.likelihood`)
     fold_params: list[dict[str, dict[str, float]]]
     predictions: list[FloatArray]
+    z: list[FloatArray] | None = None  # held-out z per trial (1)
 
 
 def folds(n: int, max_folds: int = MAX_FOLDS) -> list[list[int]]:
@@ -47,6 +48,7 @@ def cross_validate(
     n = len(preps)
     res: list[FloatArray | None] = [None] * n
     pred: list[FloatArray | None] = [None] * n
+    zs: list[FloatArray | None] = [None] * n
     fold_params = []
     held_out = folds(n) if n >= 2 else [[0]]
     for held in held_out:
@@ -54,11 +56,11 @@ def cross_validate(
         fit = fit_effects(train, effects, surrogate, chain)
         fold_params.append(fit_params(fit))
         for i in held:
-            pr = predict(preps[i], fit, surrogate, chain)
+            pr, zs[i] = predict_z(preps[i], fit, surrogate, chain)
             pred[i] = pr
             res[i] = preps[i].F - pr
-    chi2 = float(sum(np.sum((r / p.sigma) ** 2) for r, p in zip(res, preps)))
-    return CrossValidation(tuple(effects), res, chi2, fold_params, pred)  # type: ignore[arg-type]
+    chi2 = float(sum(z @ z for z in zs))  # type: ignore[union-attr]
+    return CrossValidation(tuple(effects), res, chi2, fold_params, pred, zs)  # type: ignore[arg-type]
 
 
 def uncertainty(fold_params: list[dict[str, dict[str, float]]]) -> dict[str, dict[str, float]]:

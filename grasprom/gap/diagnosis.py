@@ -65,6 +65,7 @@ from grasprom.gap.verdict import (
     Verdict,
     calibrated,
     checked_verdict,
+    heldout_z,
     judge,
     not_diagnosable,
     verdict_section,
@@ -225,6 +226,7 @@ def _report(
                     search.cv[search.chosen].residuals,
                     gap.labels,
                     [p.sigma for p in preps],
+                    **heldout_z(gap, search.cv[search.chosen]),
                 )
             ],
         },

@@ -71,20 +71,34 @@ def compliant_force(
 
 
 def _effective_motion(
-    prep: PreparedTrial, effects: Sequence[str], nlv: dict[str, float], chain: kin.ChainParams
+    prep: PreparedTrial,
+    effects: Sequence[str],
+    nlv: dict[str, float],
+    chain: kin.ChainParams,
+    side: int = 0,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Angle the chain sees (deg), finger speed (mm/s) and motion direction after latency/play."""
+    """Angle the chain sees (deg), finger speed (mm/s) and motion direction after latency/play.
+
+    ``side`` -1 / +1 puts the angle at the lower / upper end of the encoder level where it rests
+    in one (:attr:`PreparedTrial.rest_halfwidth_deg`), 0 at the level's centre.
+    """
     th = prep.theta
+    raw_th = prep.raw_theta
+    if side and prep.rest_halfwidth_deg is not None:
+        th = th + side * prep.rest_halfwidth_deg
+        raw_th = raw_th + side * prep.raw_rest_halfwidth_deg
     v = prep.v_mm_s
     sdir = prep.motion_dir
     if "latency" in effects and nlv["delay_s"] > 0:
         d = nlv["delay_s"]
-        th = np.interp(prep.t - d, prep.raw_t, prep.raw_theta)
+        th = np.interp(prep.t - d, prep.raw_t, raw_th)
         v = np.interp(prep.t - d, prep.t, v)
         sdir = np.interp(prep.t - d, prep.t, sdir)
     lo, hi = kin.theta_range_deg(chain)
     if "backlash" in effects and nlv["play_deg"] > 0:
         th = np.clip(play_deg(th, nlv["play_deg"]), lo, hi)
+    elif side:
+        th = np.clip(th, lo, hi)
     return th, v, sdir
 
 
@@ -142,19 +156,23 @@ def evaluate_model(
     surrogate: Surrogate,
     chain: kin.ChainParams,
     cache: bool = False,
+    side: int = 0,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Model handle force without linear terms ``F0`` (N), the linear basis ``Phi`` and ``T``.
+
+    ``side`` -1 / +1: with the angle at an end of the encoder level where it rests in one (see
+    :mod:`grasprom.gap.likelihood`), 0 at the level's centre.
 
     The augmented model is ``F0 + Phi @ coef`` (see :func:`combine` for the clip of the jaw
     force) with the linear coefficients of :func:`~grasprom.gap.effects.linear_params`; ``nl``
     are the non-linear parameters of :func:`~grasprom.gap.effects.nonlinear_params`; ``T`` is
     the tissue part of ``F0`` (N at the handle).
     """
-    key = (tuple(effects), tuple(round(float(x), 12) for x in nl))
+    key = (tuple(effects), tuple(round(float(x), 12) for x in nl), side)
     if cache and key in prep.cache:
         return prep.cache[key]
     nlv = {p.name: float(x) for (_, p), x in zip(nonlinear_params(effects), nl)}
-    th, v, sdir = _effective_motion(prep, effects, nlv, chain)
+    th, v, sdir = _effective_motion(prep, effects, nlv, chain, side)
     fe = _tissue_force(prep, effects, nlv, th, surrogate, chain)
     gp = np.asarray(kin.dgap_dtheta_mm_per_rad(th, chain)) / chain.L3_mm  # dFi/dFg
     f0 = np.asarray(kin.handle_force_N(fe, th, chain), dtype=float)

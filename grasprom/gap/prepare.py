@@ -25,7 +25,8 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from grasprom.chain import kinematics as kin
-from grasprom.gap.signals import dequantise, encoder_quantum, noise_sigma
+from grasprom.gap.likelihood import interval_z, null_chi2
+from grasprom.gap.signals import encoder_quantum, noise_sigma, reconstruct_angle
 from grasprom.gap.trials import FloatArray, Trial
 from grasprom.surrogate import Surrogate
 
@@ -61,6 +62,19 @@ class PreparedTrial:
     quantum_deg: float = 0.0
     quantum_eff_deg: FloatArray | float = 0.0  # per-sample angle uncertainty (deg), see below
     cache: dict = field(default_factory=dict)
+    # the interval likelihood (:mod:`grasprom.gap.likelihood`): half the level (deg) where the
+    # angle rests inside an encoder level (0 where it is known between the counts), on the grid
+    # and at the raw samples; the sigma without the quantum at those samples (N); the baseline's
+    # z and the expected z^2 of a correct model per sample (1)
+    rest_halfwidth_deg: FloatArray | None = None
+    raw_rest_halfwidth_deg: FloatArray | None = None
+    sigma_fit: FloatArray | None = None
+    z0: FloatArray | None = None
+    null: FloatArray | None = None
+
+    def fit_sigma(self) -> FloatArray:
+        """The sigma of the fit (N): :attr:`sigma_fit`, or :attr:`sigma` without an interval."""
+        return self.sigma if self.sigma_fit is None else self.sigma_fit
 
 
 def _contact_gap(surrogate: Surrogate, thickness: float, material: str) -> float:
@@ -106,13 +120,34 @@ def _add_baseline(
     )
     p.F0 = f0
     sig = p.noise_N if math.isfinite(p.noise_N) and p.noise_N > 0 else 0.01
-    p.sigma = np.sqrt(
-        sig**2
-        + (slope * p.quantum_eff_deg) ** 2 / 12.0
-        + (SURROGATE_REL_UNCERTAINTY * f0) ** 2
-        + 1e-8
-    )
+    base2 = sig**2 + (SURROGATE_REL_UNCERTAINTY * f0) ** 2 + 1e-8
+    p.sigma = np.sqrt(base2 + (slope * p.quantum_eff_deg) ** 2 / 12.0)
+    if p.rest_halfwidth_deg is not None:
+        _add_interval(p, surrogate, chain, base2, slope)
     return g, fe
+
+
+def _add_interval(
+    p: PreparedTrial, surrogate: Surrogate, chain: kin.ChainParams, base2: FloatArray,
+    slope: FloatArray,
+) -> None:  # fmt: skip
+    """The interval likelihood's sigma, the baseline's ``z`` and the expected null ``z^2``.
+
+    At the samples resting in a level the quantum is the interval (the baseline evaluated at
+    both ends of the level), elsewhere the Gaussian angle term of :attr:`sigma` stays.
+    """
+    hw = p.rest_halfwidth_deg
+    rest = hw > 0
+    q_moving = np.where(rest, 0.0, p.quantum_eff_deg)
+    p.sigma_fit = np.sqrt(base2 + (slope * q_moving) ** 2 / 12.0)
+    ends = []
+    lo, hi = kin.theta_range_deg(chain)
+    for side in (-1.0, 1.0):
+        th = np.clip(p.theta + side * hw, lo, hi)
+        fe = np.asarray(surrogate.force(np.asarray(kin.gap_mm(th, chain)), p.thickness, p.material))
+        ends.append(np.asarray(kin.handle_force_N(fe, th, chain), dtype=float))
+    p.z0 = interval_z(p.F, p.F0, (ends[0], ends[1]), p.sigma_fit)
+    p.null = null_chi2(np.abs(ends[1] - ends[0]), p.sigma_fit)
 
 
 def _add_labels(
@@ -159,7 +194,8 @@ def prepare_trial(
     """
     raw_t = trial.time_s
     quantum = encoder_quantum(trial.theta_deg)
-    raw_th, moving = dequantise(raw_t, trial.theta_deg)  # the angle between the counts
+    # the angle between the counts and the error of its interpolation (deg)
+    raw_th, moving, interp_err = reconstruct_angle(raw_t, trial.theta_deg)
     dt = float(np.median(np.diff(raw_t)))
     stride = max(int(round(1.0 / (rate_hz * dt))), 1)
     idx = np.arange(0, raw_t.size, stride)
@@ -178,10 +214,16 @@ def prepare_trial(
     )
     p.noise_N = noise_sigma(trial.force_handle_N)
     p.quantum_deg = quantum
-    # angle uncertainty per sample: the quantum at rest, the crossing-time uncertainty (one
-    # sample of motion, at most the quantum) where dequantise interpolated
+    # angle uncertainty per sample (the width of a uniform error, deg): the quantum at rest;
+    # where the angle was interpolated, the crossing-time uncertainty (one sample of motion, at
+    # most the quantum) and the interpolation error (a standard deviation: x sqrt(12))
     vdeg = np.abs(v_mm) / (math.radians(1.0) * chain.L3_mm)
-    p.quantum_eff_deg = np.where(moving[idx], np.minimum(quantum, vdeg * dt), quantum)
+    crossing = np.minimum(quantum, vdeg * dt)
+    p.quantum_eff_deg = np.where(
+        moving[idx], np.sqrt(crossing**2 + 12.0 * interp_err[idx] ** 2), quantum
+    )
+    p.raw_rest_halfwidth_deg = np.where(moving, 0.0, 0.5 * quantum)
+    p.rest_halfwidth_deg = p.raw_rest_halfwidth_deg[idx]
     g, fe = _add_baseline(p, surrogate, chain)
     _add_labels(p, g, fe, surrogate, chain)
     return p

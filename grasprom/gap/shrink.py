@@ -69,20 +69,29 @@ class PhaseShrink:
 
 
 def _per_trial(
-    residuals: Sequence[np.ndarray], labels: Sequence[np.ndarray], sigmas: Sequence[np.ndarray]
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per trial and phase: weighted sum of squares, sum of squares (N^2), sample count."""
+    residuals: Sequence[np.ndarray],
+    labels: Sequence[np.ndarray],
+    sigmas: Sequence[np.ndarray],
+    z: Sequence[np.ndarray] | None = None,
+    null: Sequence[np.ndarray] | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per trial and phase: weighted sum of squares (of ``z`` if given, else ``r / sigma``), sum
+    of squares (N^2), sample count and the chi2 a correct model leaves (``null``'s sum, else the
+    count)."""
     k = len(PHASES)
     wss = np.zeros((len(residuals), k))
     ss = np.zeros_like(wss)
     cnt = np.zeros_like(wss)
+    n0 = np.zeros_like(wss)
     for i, (r, lab, sig) in enumerate(zip(residuals, labels, sigmas)):
+        w = r / sig if z is None else z[i]
         for j in range(k):
             m = lab == j
-            wss[i, j] = np.sum((r[m] / sig[m]) ** 2)
+            wss[i, j] = np.sum(w[m] ** 2)
             ss[i, j] = np.sum(r[m] ** 2)
             cnt[i, j] = np.sum(m)
-    return wss, ss, cnt
+            n0[i, j] = cnt[i, j] if null is None else np.sum(null[i][m])
+    return wss, ss, cnt, n0
 
 
 def _shrink(s0: np.ndarray, s1: np.ndarray) -> np.ndarray:
@@ -99,6 +108,10 @@ def shrink_by_phase(
     sigmas: Sequence[np.ndarray],
     n_boot: int = N_BOOTSTRAP,
     seed: int = 0,
+    *,
+    z_before: Sequence[np.ndarray] | None = None,
+    z_after: Sequence[np.ndarray] | None = None,
+    null: Sequence[np.ndarray] | None = None,
 ) -> list[PhaseShrink]:
     """Held-out shrink overall and per phase, with a bootstrap interval over trials.
 
@@ -114,20 +127,24 @@ def shrink_by_phase(
         Bootstrap resamples (0: no interval, ``low`` and ``high`` NaN).
     seed : int
         Seed of the resampling (the result is reproducible).
+    z_before, z_after, null : sequence of ndarray, optional
+        Per trial: the ``z`` of the interval likelihood before / after and the expected ``z^2``
+        of a correct model (:mod:`~grasprom.gap.likelihood`), in place of ``r / sigma`` and 1.
 
     Returns
     -------
     list of PhaseShrink
         ``"all"`` first, then the phases with samples, in :data:`PHASES` order.
     """
-    w0, ss0, cnt = _per_trial(before, labels, sigmas)
-    w1, ss1, _ = _per_trial(after, labels, sigmas)
+    w0, ss0, cnt_n, cnt = _per_trial(before, labels, sigmas, z_before, null)
+    w1, ss1, _, _ = _per_trial(after, labels, sigmas, z_after, null)
     # columns: the phases, then "all"
     w0 = np.column_stack([w0, w0.sum(axis=1)])
     w1 = np.column_stack([w1, w1.sum(axis=1)])
     ss0 = np.column_stack([ss0, ss0.sum(axis=1)])
     ss1 = np.column_stack([ss1, ss1.sum(axis=1)])
     cnt = np.column_stack([cnt, cnt.sum(axis=1)])
+    cnt_n = np.column_stack([cnt_n, cnt_n.sum(axis=1)])
     s0 = w0.sum(axis=0) - cnt.sum(axis=0)
     s1 = w1.sum(axis=0) - cnt.sum(axis=0)
     point = _shrink(s0, s1)
@@ -147,7 +164,7 @@ def shrink_by_phase(
             if col.size:
                 lo[j], hi[j] = np.quantile(col, [q, 1.0 - q])
     total = float(np.sum(np.maximum(s0[:-1], 0.0)))
-    n_all = cnt.sum(axis=0)
+    n_all = cnt_n.sum(axis=0)
     out = []
     for j, name in [(len(PHASES), "all"), *enumerate(PHASES)]:
         if n_all[j] == 0:

@@ -15,6 +15,7 @@ import numpy as np
 
 from grasprom.gap.baseline import BaselineGap
 from grasprom.gap.criteria import CONFIDENCE_PLATT, EXPLAINED_SHARE, SIGNIFICANT_RHO
+from grasprom.gap.crossval import CrossValidation
 from grasprom.gap.prepare import PHASES
 from grasprom.gap.selection import CandidateSearch
 from grasprom.gap.shrink import shrink_by_phase
@@ -36,8 +37,14 @@ def worse_phases(
     effect set makes worse (> :data:`PHASE_WORSE` x the baseline's), each as a sentence with
     the RMS before and after (N); the per-phase figures are :func:`~.shrink.shrink_by_phase`'s
     (without its bootstrap)."""
+    cv = search.cv[search.chosen]
     rows = shrink_by_phase(
-        gap.residuals, search.cv[search.chosen].residuals, gap.labels, sigmas, n_boot=0
+        gap.residuals,
+        cv.residuals,
+        gap.labels,
+        sigmas,
+        n_boot=0,
+        **heldout_z(gap, cv),
     )
     return [
         f"{r.phase} ({100 * r.share_of_gap:.0f} % of the gap): held-out RMS "
@@ -47,6 +54,12 @@ def worse_phases(
         and r.share_of_gap >= PHASE_SHARE_SIGNIFICANT
         and r.systematic_after > PHASE_WORSE * r.systematic_before
     ]
+
+
+def heldout_z(gap: BaselineGap, cv: CrossValidation) -> dict[str, Any]:
+    """The ``z`` arguments of :func:`~.shrink.shrink_by_phase` (interval likelihood) for the
+    baseline and a cross-validated set."""
+    return {"z_before": gap.z, "z_after": cv.z, "null": gap.null}
 
 
 @dataclass

@@ -188,3 +188,28 @@ def test_dequantise_recovers_the_angle_between_encoder_counts():
     assert np.all(est_r[520:] == stair[499]) and not mov_r[520:].any()
     fine, mov_f = dequantise(t, true)
     assert np.max(np.abs(fine - true)) < 1e-4
+
+
+@pytest.mark.parametrize("dt", [5e-4, 1e-3, 2e-3])
+def test_reconstruct_angle_follows_the_acceleration_out_of_a_rest(dt):
+    """Issue 15: out of a rest (30 deg/s^2 from standstill, a 0.1 deg encoder) the monotone cubic
+    through the level crossings is 2.7-5x closer than the straight line between them over the
+    first three levels (1.7 vs 8.6 mdeg at 1 kHz, 3.2 vs 8.6 at 500 Hz), and the per-sample
+    uncertainty the diagnosis uses -- half the crossing-time term min(q, v dt) plus 3 x the
+    interpolation's error estimate -- bounds the error at every interpolated sample."""
+    from grasprom.gap.signals import reconstruct_angle
+
+    q = 0.1
+    t = np.arange(0.0, 0.6, dt)
+    true = 10.02 + 15.0 * t**2
+    stair = np.round(true / q) * q
+    est, moving, err = reconstruct_angle(t, stair)
+    ch = np.flatnonzero(np.diff(stair) != 0) + 1
+    kt, kv = 0.5 * (t[ch - 1] + t[ch]), 0.5 * (stair[ch - 1] + stair[ch])
+    line = np.interp(t, kt, kv)
+    first = moving & (t < kt[3])
+    assert np.abs(est[first] - true[first]).max() < 0.4 * np.abs(line[first] - true[first]).max()
+    bound = 0.5 * np.minimum(q, np.abs(np.gradient(true, t)) * dt) + 3.0 * err
+    assert moving.mean() > 0.85
+    assert np.all(np.abs(est - true)[moving] <= bound[moving])
+    assert np.all(err[~moving] == 0.0)
