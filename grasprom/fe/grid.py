@@ -317,21 +317,11 @@ def build_grid(
     SweepInputError
         With a message naming the offending option (``--thickness``, ``--material``,
         ``--diameter``, ``--jaw-length``, ``--closed-gap``, ``--force-cap``, ``--n-layers``,
-        ``--n-circ``, ``--out``) and value; also a thickness outside
-        :data:`PLAUSIBLE_THICKNESS_MM` (a unit mistake) and a grid over the case limit.
+        ``--n-circ``, ``--grading``, ``--radial-grading``, ``--out``) and value; also a
+        thickness outside :data:`PLAUSIBLE_THICKNESS_MM` (a unit mistake) and a grid over the
+        case limit.
     """
-    limit = _case_limit(max_cases)
-    t_list = (
-        parse_thickness(thickness, limit)
-        if isinstance(thickness, str)
-        else _unique(round(float(t), _THICKNESS_DECIMALS) for t in thickness)
-    )
-    mats = parse_materials(materials)
-    if not t_list:
-        raise SweepInputError("--thickness: empty grid")
-    if len(t_list) * len(mats) > limit:
-        n = len(t_list) * len(mats)
-        raise _too_many(f"--thickness x --material: {len(t_list)} x {len(mats)}", n, limit)
+    t_list, mats = _grid_axes(thickness, materials, _case_limit(max_cases))
     lengths = {
         "diameter_mm": diameter_mm,
         "jaw_length_mm": jaw_length_mm,
@@ -341,13 +331,9 @@ def build_grid(
     _check_options(lengths, n_layers, n_circ)
     _check_grading(grading, radial_grading)
     kw = {k: float(v) for k, v in lengths.items() if v is not None}
-    given = (
-        ("n_layers", n_layers),
-        ("n_circ", n_circ),
-        ("grading", grading),
-        ("radial_grading", radial_grading),
+    mesh_kw = _given(
+        n_layers=n_layers, n_circ=n_circ, grading=grading, radial_grading=radial_grading
     )
-    mesh_kw = {k: v for k, v in given if v is not None}
     _check_geometry(t_list, kw)
     mesh = MeshSpec(**mesh_kw)
     specs = [CaseSpec(material=m, thickness_mm=t, mesh=mesh, **kw) for m in mats for t in t_list]
@@ -359,6 +345,24 @@ def build_grid(
     if out_dir is not None:
         check_out_dir(out_dir)
     return specs
+
+
+def _grid_axes(
+    thickness: str | Iterable[float], materials: str | Iterable[str], limit: int
+) -> tuple[list[float], list[str]]:
+    """The thicknesses (mm) and materials of the grid, checked against the case ``limit``."""
+    t_list = (
+        parse_thickness(thickness, limit)
+        if isinstance(thickness, str)
+        else _unique(round(float(t), _THICKNESS_DECIMALS) for t in thickness)
+    )
+    mats = parse_materials(materials)
+    if not t_list:
+        raise SweepInputError("--thickness: empty grid")
+    if len(t_list) * len(mats) > limit:
+        n = len(t_list) * len(mats)
+        raise _too_many(f"--thickness x --material: {len(t_list)} x {len(mats)}", n, limit)
+    return t_list, mats
 
 
 def _case_limit(max_cases: int | None) -> int:
@@ -396,6 +400,11 @@ def _check_options(
             f"--n-circ: the model needs at least {MIN_CIRC_2D} divisions along the quarter "
             f"circumference (coarser meshes cannot follow the jaw contact), got {n_circ}"
         )
+
+
+def _given(**kw: Any) -> dict[str, Any]:
+    """The keyword arguments that are not None."""
+    return {k: v for k, v in kw.items() if v is not None}
 
 
 def _check_grading(grading: float | None, radial_grading: float | None) -> None:

@@ -810,6 +810,21 @@ def _crease_onset(
     return out
 
 
+def _splice_crease(disc, material, rows: list, branch: list, back: list, R: float, scale_N):
+    """Replace the rows (and ``branch`` entries) below the Maxwell point ``back[0]`` by the
+    creased states of :func:`_crease_onset`; unchanged if ``back`` is empty."""
+    if not back:
+        return rows, branch
+    keep = [k for k, b in enumerate(branch) if b[0] > back[0][0]]
+    rows = [rows[k] for k in keep]
+    branch = [branch[k] for k in keep]
+    for hb, sb, itb in back:
+        rb = _step_row(disc, sb, hb, R, scale_N, itb)
+        rows.append(rb)
+        branch.append((hb, energy(disc, material, sb.u), rb["force_N"] / scale_N))
+    return rows, branch
+
+
 def _relax(disc, material, state: _State, h: float, settings: SolverSettings, fscale):
     """Equilibrium at jaw height ``h`` (mm) past a snap, by proximal-point iteration.
 
@@ -914,23 +929,10 @@ def run_case(spec: CaseSpec, progress=None) -> CaseResult:
         total_newton += iters
         row = _step_row(disc, new_state, h_new, R, scale_N, iters)
         e_new = energy(disc, material, new_state.u)
-        if (
-            s.maxwell_crease
-            and t < h_new < 2.0 * t
-            and row["force_N"] < force_prev * (1.0 - 1e-4)
-            and len(branch) >= 2
-        ):
+        if s.maxwell_crease and t < h_new < 2.0 * t and row["force_N"] < force_prev * (1 - 1e-4):
             back = _crease_onset(disc, material, new_state, h_new, branch, t, s, fscale, landing)
-            if back:
-                h_m = back[0][0]
-                keep = [k for k, b in enumerate(branch) if b[0] > h_m]
-                rows = [rows[k] for k in keep]
-                branch = [branch[k] for k in keep]
-                for hb, sb, itb in back:
-                    total_newton += itb
-                    rb = _step_row(disc, sb, hb, R, scale_N, itb)
-                    rows.append(rb)
-                    branch.append((hb, energy(disc, material, sb.u), rb["force_N"] / scale_N))
+            rows, branch = _splice_crease(disc, material, rows, branch, back, R, scale_N)
+            total_newton += sum(b[2] for b in back)
         state = new_state
         h = h_new
         rows.append(row)

@@ -101,6 +101,28 @@ def _shrink(s0: np.ndarray, s1: np.ndarray) -> np.ndarray:
     return np.where(s0 > 0, out, np.nan)
 
 
+def _bootstrap_interval(
+    d0: np.ndarray, d1: np.ndarray, n_boot: int, seed: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Bootstrap interval (:data:`INTERVAL`) of the shrink over trials: ``d0``, ``d1`` are the
+    per-trial (rows) systematic chi2 before / after per column; NaN with too few trials."""
+    n_tr = d0.shape[0]
+    lo = np.full(d0.shape[1], math.nan)
+    hi = np.full(d0.shape[1], math.nan)
+    if n_tr < MIN_TRIALS_INTERVAL or n_boot <= 0:
+        return lo, hi
+    rng = np.random.default_rng(seed)
+    idx = rng.integers(0, n_tr, size=(n_boot, n_tr))
+    counts = np.stack([np.bincount(row, minlength=n_tr) for row in idx])  # (n_boot, n_tr)
+    boot = _shrink(counts @ d0, counts @ d1)
+    q = (1.0 - INTERVAL) / 2.0
+    for j in range(boot.shape[1]):
+        col = boot[:, j][np.isfinite(boot[:, j])]
+        if col.size:
+            lo[j], hi[j] = np.quantile(col, [q, 1.0 - q])
+    return lo, hi
+
+
 def shrink_by_phase(
     before: Sequence[np.ndarray],
     after: Sequence[np.ndarray],
@@ -148,21 +170,7 @@ def shrink_by_phase(
     s0 = w0.sum(axis=0) - cnt.sum(axis=0)
     s1 = w1.sum(axis=0) - cnt.sum(axis=0)
     point = _shrink(s0, s1)
-    n_tr = len(before)
-    lo = np.full(point.shape, math.nan)
-    hi = np.full(point.shape, math.nan)
-    if n_tr >= MIN_TRIALS_INTERVAL and n_boot > 0:
-        rng = np.random.default_rng(seed)
-        idx = rng.integers(0, n_tr, size=(n_boot, n_tr))
-        counts = np.stack([np.bincount(row, minlength=n_tr) for row in idx])  # (n_boot, n_tr)
-        b0 = counts @ (w0 - cnt)
-        b1 = counts @ (w1 - cnt)
-        boot = _shrink(b0, b1)
-        q = (1.0 - INTERVAL) / 2.0
-        for j in range(boot.shape[1]):
-            col = boot[:, j][np.isfinite(boot[:, j])]
-            if col.size:
-                lo[j], hi[j] = np.quantile(col, [q, 1.0 - q])
+    lo, hi = _bootstrap_interval(w0 - cnt, w1 - cnt, n_boot, seed)
     total = float(np.sum(np.maximum(s0[:-1], 0.0)))
     n_all = cnt_n.sum(axis=0)
     out = []
