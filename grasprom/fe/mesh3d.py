@@ -15,6 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.optimize as so
 
+from grasprom.fe.model2d import graded_fractions
+
 ELEMENTS_3D = ("Q2/P1", "Q2/P0", "Q2/Q1")
 
 
@@ -81,9 +83,7 @@ def tube_mesh(outer_radius: float, thickness: float, z_nodes: np.ndarray, mesh: 
     if nl < 1 or nc < 2:
         raise ValueError(f"mesh too coarse: n_layers={nl} (>= 1), n_circ={nc} (>= 2)")
     r = np.linspace(outer_radius - thickness, outer_radius, nl + 1)
-    q = float(mesh.grading) ** (1.0 / max(nc - 1, 1))
-    ds = q ** np.arange(nc)
-    th = 0.5 * np.pi * np.concatenate([[0.0], np.cumsum(ds)]) / ds.sum()
+    th = 0.5 * np.pi * graded_fractions(nc, mesh.grading)
     m = skfem.MeshHex.init_tensor(r, th, np.asarray(z_nodes, dtype=float))
     rho, t, z = m.p
     x = rho * np.cos(t)

@@ -122,17 +122,26 @@ class MeshSpec:
 
     def refined(self, factor: int = 2) -> MeshSpec:
         """The same mesh with every element split ``factor`` times in each direction."""
-        g = self.grading ** ((self.n_circ * factor - 1) / max(self.n_circ - 1, 1) / factor)
-        nl = self.n_layers
-        rg = self.radial_grading ** ((nl * factor - 1) / max(nl - 1, 1) / factor)
-        return MeshSpec(nl * factor, self.n_circ * factor, g, self.element, rg)
+
+        def ratio(r: float, n: int) -> float:  # the same progression with n * factor elements
+            return r ** ((n * factor - 1) / max(n - 1, 1) / factor)
+
+        nl, nc = self.n_layers, self.n_circ
+        g, rg = ratio(self.grading, nc), ratio(self.radial_grading, nl)
+        return MeshSpec(nl * factor, nc * factor, g, self.element, rg)
 
     def layer_edges(self, inner_radius: float, thickness: float) -> np.ndarray:
         """Radii (mm) of the layer boundaries, inner to outer wall."""
-        nl = int(self.n_layers)
-        q = float(self.radial_grading) ** (1.0 / max(nl - 1, 1))
-        dr = q ** np.arange(nl)
-        return inner_radius + thickness * np.concatenate([[0.0], np.cumsum(dr)]) / dr.sum()
+        return inner_radius + thickness * graded_fractions(self.n_layers, self.radial_grading)
+
+
+def graded_fractions(n: int, ratio: float) -> np.ndarray:
+    """Node positions in ``[0, 1]`` of ``n`` elements in geometric progression, the last
+    ``ratio`` times as long as the first (1 = uniform)."""
+    n = int(n)
+    q = float(ratio) ** (1.0 / max(n - 1, 1))
+    ds = q ** np.arange(n)
+    return np.concatenate([[0.0], np.cumsum(ds)]) / ds.sum()
 
 
 @dataclass(frozen=True)
@@ -279,9 +288,7 @@ def ring_mesh(outer_radius: float, thickness: float, mesh: MeshSpec):
     if nl < 1 or nc < 4:
         raise ValueError(f"mesh too coarse: n_layers={nl} (>= 1), n_circ={nc} (>= 4)")
     r = mesh.layer_edges(outer_radius - thickness, thickness)
-    q = float(mesh.grading) ** (1.0 / max(nc - 1, 1))
-    ds = q ** np.arange(nc)
-    th = 0.5 * np.pi * np.concatenate([[0.0], np.cumsum(ds)]) / ds.sum()
+    th = 0.5 * np.pi * graded_fractions(nc, mesh.grading)
     R, T = np.meshgrid(r, th, indexing="ij")
     x = R * np.cos(T)
     y = R * np.sin(T)
