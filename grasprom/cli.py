@@ -468,7 +468,8 @@ def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
 
     opts3d = Model3DOptions(args.contact, args.friction, args.tube_length, args.ends)
     try:
-        check_options(args.model, opts3d)
+        mesh2d = {"--grading": args.grading, "--radial-grading": args.radial_grading}
+        check_options(args.model, opts3d, mesh2d)
         specs = build_grid(
             args.thickness,
             args.material,
@@ -482,9 +483,6 @@ def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
             radial_grading=args.radial_grading,
         )
         if args.model == "3d":
-            for flag, v in (("--grading", args.grading), ("--radial-grading", args.radial_grading)):
-                if v is not None:
-                    raise SweepInputError(f"{flag}: a 2D mesh option (--model 2d)")
             mesh = {k: v for k, v in (("n_layers", args.n_layers), ("n_circ", args.n_circ)) if v}
             specs = to_3d(specs, opts3d, mesh)
         else:

@@ -61,8 +61,13 @@ class Model3DOptions:
     ends: str | None = None
 
 
-def check_options(model: str, opts: Model3DOptions) -> None:
+def check_options(
+    model: str, opts: Model3DOptions, mesh2d: Mapping[str, object] | None = None
+) -> None:
     """Validate ``--model`` and the 3D options; errors name the option and the value.
+
+    ``mesh2d`` maps the 2D-only mesh options (flag -> value or None, e.g. ``--grading``);
+    given ones are refused with ``--model 3d``, as the 3D options are with ``--model 2d``.
 
     Raises
     ------
@@ -89,6 +94,9 @@ def check_options(model: str, opts: Model3DOptions) -> None:
         given = [n for n, v in (("--tube-length", tl), ("--ends", opts.ends)) if v is not None]
         if given:
             raise SweepInputError(f"{', '.join(given)}: only with --model 3d")
+    for flag, v in (mesh2d or {}).items():
+        if model == "3d" and v is not None:
+            raise SweepInputError(f"{flag}: a 2D mesh option (--model 2d)")
 
 
 def to_2d(specs: Sequence[Any], opts: Model3DOptions) -> list[Any]:
