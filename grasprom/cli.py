@@ -204,7 +204,8 @@ def _add_case_geometry(s: argparse.ArgumentParser, d: dict) -> None:
         default=None,
         metavar="RATIO",
         help="2D mesh: largest / smallest element along the circumference, refining toward the "
-        f"side fold (1 = uniform; default {d['grading']:g})",
+        f"side fold (1 = uniform; default {d['grading']:g}; lowered for thick walls so the fold "
+        f"corner element is at least {d['corner_aspect']:g} times as long as thick)",
     )
     s.add_argument(
         "--radial-grading",

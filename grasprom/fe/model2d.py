@@ -29,7 +29,7 @@ Lengths in mm, forces in N, stresses in MPa.
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 import pandas as pd
@@ -101,6 +101,11 @@ class MeshSpec:
     radial_grading : float
         Ratio of the outermost to the innermost layer thickness (default 4): thin layers at the
         inner wall, where the fold's inner surface creases.
+    corner_aspect : float
+        Smallest ratio (default 0.6) of the fold corner element's circumferential length to its
+        radial thickness (the innermost layer): where ``grading`` would make the corner element
+        flatter than that (thick walls, whose innermost layer is thick), the circumferential
+        grading is lowered until it is not (:meth:`circ_grading`); 0 keeps ``grading``.
 
     Notes
     -----
@@ -109,9 +114,13 @@ class MeshSpec:
     early a mesh lets it form is set by the element size at that corner (a uniform 4 x 64 mesh,
     0.35 mm there, holds the smooth fold to gap 4.5 mm at t = 1.4 mm and then snaps by 5.5 %;
     8 x 128 creases at 4.82 mm by 1.6 %).  The default grades both ways toward the corner
-    (about 0.1 mm there) and places the crease by energy (:attr:`SolverSettings.maxwell_crease`);
-    against its 2x refinement the band converges within 3 % at t = 0.8 and 1.4 mm (max 2.4 and
-    1.4 %), 5.1 % at t = 2.0 mm (``python benchmarks/bench_fe.py --crease``, docs/fe-model.md).
+    (about 0.1 mm there) and places the crease by energy (:attr:`SolverSettings.maxwell_crease`).
+    A thick wall's innermost layer is thicker than that (0.22 mm at t = 2.0 mm): with 8:1 the
+    corner element was 0.43 times as long as thick and the band missed 3 % (5.1 %), so the
+    circumferential grading is lowered until the corner element's aspect is ``corner_aspect``
+    (0.6; t >= 1.5 mm, :meth:`for_wall`).  Against its 2x refinement the band converges within
+    3 % at every thickness (max 2.4 / 1.4 / 1.8 % at t = 0.8 / 1.4 / 2.0 mm;
+    ``python benchmarks/bench_fe.py --crease``, docs/fe-model.md).
     """
 
     n_layers: int = 4
@@ -119,6 +128,7 @@ class MeshSpec:
     grading: float = 8.0
     element: str = "P2B/P1"
     radial_grading: float = 4.0
+    corner_aspect: float = 0.6
 
     def refined(self, factor: int = 2) -> MeshSpec:
         """The same mesh with every element split ``factor`` times in each direction."""
@@ -128,11 +138,47 @@ class MeshSpec:
 
         nl, nc = self.n_layers, self.n_circ
         g, rg = ratio(self.grading, nc), ratio(self.radial_grading, nl)
-        return MeshSpec(nl * factor, nc * factor, g, self.element, rg)
+        return MeshSpec(nl * factor, nc * factor, g, self.element, rg, self.corner_aspect)
 
     def layer_edges(self, inner_radius: float, thickness: float) -> np.ndarray:
         """Radii (mm) of the layer boundaries, inner to outer wall."""
         return inner_radius + thickness * graded_fractions(self.n_layers, self.radial_grading)
+
+    def for_wall(self, inner_radius: float, thickness: float) -> MeshSpec:
+        """This mesh with its circumferential grading resolved for one wall.
+
+        The corner element at the inner fold is ``inner_radius * pi/2 * f1`` long (``f1`` the
+        first fraction of :func:`graded_fractions`, mm) and as thick as the innermost layer
+        (mm); the grading becomes the largest ``<= grading`` whose corner element is at least
+        ``corner_aspect`` times as long as thick (1 if even a uniform division is flatter), and
+        ``corner_aspect`` becomes 0 (resolved).  Refine the resolved mesh,
+        ``for_wall(...).refined(2)``, for a refinement of exactly this mesh.
+
+        Parameters
+        ----------
+        inner_radius, thickness : float
+            Inner radius and wall thickness (mm).
+
+        Returns
+        -------
+        MeshSpec
+        """
+        g = float(self.grading)
+        if self.corner_aspect <= 0 or g <= 1:
+            return self
+        h_in = thickness * graded_fractions(self.n_layers, self.radial_grading)[1]
+        need = self.corner_aspect * h_in / (0.5 * np.pi * inner_radius)
+
+        def first(gg: float) -> float:
+            return float(graded_fractions(self.n_circ, gg)[1])
+
+        if first(g) < need:
+            lo, hi = 0.0, np.log(g)  # first() falls with the grading: bisect on log(grading)
+            for _ in range(60):
+                mid = 0.5 * (lo + hi)
+                lo, hi = (mid, hi) if first(np.exp(mid)) >= need else (lo, mid)
+            g = float(np.exp(lo))
+        return replace(self, grading=g, corner_aspect=0.0)
 
 
 def graded_fractions(n: int, ratio: float) -> np.ndarray:
@@ -287,6 +333,7 @@ def ring_mesh(outer_radius: float, thickness: float, mesh: MeshSpec):
     nl, nc = int(mesh.n_layers), int(mesh.n_circ)
     if nl < 1 or nc < 4:
         raise ValueError(f"mesh too coarse: n_layers={nl} (>= 1), n_circ={nc} (>= 4)")
+    mesh = mesh.for_wall(outer_radius - thickness, thickness)
     r = mesh.layer_edges(outer_radius - thickness, thickness)
     th = 0.5 * np.pi * graded_fractions(nc, mesh.grading)
     R, T = np.meshgrid(r, th, indexing="ij")
@@ -986,6 +1033,9 @@ def _solver_record(
         "wall_time_s": time.perf_counter() - t0,
         "material_constants": material.constants(),
         "mesh": asdict(spec.mesh),
+        "mesh_circ_grading": spec.mesh.for_wall(
+            0.5 * spec.diameter_mm - spec.thickness_mm, spec.thickness_mm
+        ).grading,
         "solver": asdict(spec.solver),
         "element": ELEMENT_DESCRIPTIONS[spec.mesh.element],
         "force_definition": "force_N = 2 x quarter-model reaction (N/mm) x jaw_length_mm",
