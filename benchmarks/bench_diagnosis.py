@@ -2,9 +2,10 @@
 
 Random cases over every library effect alone, every pair, null cases (noise only) and an effect
 outside the library (motor cogging ripple): 116 cases by default (the first 102 as before the
-``sensor_drift`` candidate, then its 6 singles and 8 pairs, :data:`ADDED_EFFECTS`).  Each case: :func:`grasprom.gap.synth.synth_case`
-makes ``--trials`` "real" trials with the effect identities withheld;
-:func:`grasprom.gap.diagnosis.diagnose` sees only the trial tables and sidecars.  Prints the
+``sensor_drift`` candidate, then its 6 singles and 8 pairs, :data:`ADDED_EFFECTS`).  Each
+case: :func:`grasprom.gap.synth.synth_case` makes ``--trials`` "real" trials with the effect
+identities withheld; :func:`grasprom.gap.diagnosis.diagnose` sees only the trial tables and
+sidecars.  Prints the
 confusion matrix, top-1 accuracy, median
 held-out shrink, null -> none rate, the verdicts on out-of-library cases and the block
 attribution of single-effect cases (``where.block`` vs the block of the truth effect,
