@@ -9,6 +9,7 @@ screens' thresholds; clean trials of the project's own synthesiser must pass eve
 from __future__ import annotations
 
 import json
+import math
 import warnings
 
 import numpy as np
@@ -121,13 +122,18 @@ def test_cli_writes_no_augmented_model_and_removes_a_stale_one(surrogate, tmp_pa
     assert rep["augmented_model"] is None and rep["verdict"]["reasons"]
 
 
-def _search(shares: dict):
+def _search(shares: dict, left: dict | None = None):
+    """A stand-in candidate search: explained shares and the systematic ratio each set leaves
+    held-out (default 0.5, within the noise), on 1000 samples."""
     from types import SimpleNamespace
 
     keys = list(shares)
+    n = 1000
+    cv = {k: SimpleNamespace(chi2=n * (1.0 + (left or {}).get(k, 0.5))) for k in keys}
     return SimpleNamespace(chosen=keys[0], singles=[k for k in keys if len(k) == 1],
                            pair_rows=[k for k in keys if len(k) == 2],
-                           share=lambda k: shares[k])  # fmt: skip
+                           share=lambda k: shares[k], cv=cv, n_null=n,
+                           n_samples=n)  # fmt: skip
 
 
 def test_confidence_is_lowered_for_a_tie_and_a_block_disagreement():
@@ -150,6 +156,24 @@ def test_confidence_is_lowered_for_a_tie_and_a_block_disagreement():
     assert checked_verdict(v, clear, None, frozenset({"mechanism"})) == v  # block not measured
     none = Verdict("none", [], 0.9, "within noise", 0.0, 1.0, 1.0, 0.0, 0.0)
     assert checked_verdict(none, tie, "tissue", frozenset({"mechanism"})) == none
+
+
+def test_a_single_leaving_a_significant_gap_is_no_tie_for_the_pair():
+    """A pair that removes the gap a single leaves (systematic ratio 0.4 vs 30 held-out) is no
+    tie with that single even at 99.9 % vs 99.95 % of a huge baseline gap; their separation is
+    the ratio of the gaps left in noise units (>= 5x: 1), not of the floored shares (0)."""
+    from grasprom.gap.verdict import runner_up, separation
+
+    pair, single = ("backlash", "latency"), ("backlash",)
+    shares = {pair: 0.9995, single: 0.999}
+    resolved = _search(shares, {pair: 0.4, single: 30.0})
+    resolved.best = single
+    assert runner_up(resolved) is None
+    assert separation(resolved, 0.9995) == 1.0
+    same = _search(shares, {pair: 0.4, single: 1.5})  # both about at the noise: a tie
+    same.best = single
+    assert runner_up(same) == single
+    assert separation(same, 0.9995) == pytest.approx(math.log(1.5) / math.log(5.0))
 
 
 def test_calibrated_confidence_is_monotone_capped_and_only_for_explained():
