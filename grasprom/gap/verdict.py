@@ -111,10 +111,15 @@ def separation(search: CandidateSearch, e_share: float) -> float:
     return float(np.clip(max(by_share, by_noise) / math.log(5.0), 0.0, 1.0))
 
 
-def _classify(
+def classify(
     gap: BaselineGap, chosen: tuple[str, ...], e_share: float, sep: float
 ) -> tuple[str, list[str], float, str]:
-    """Label, effects, confidence (unclipped) and message of the verdict."""
+    """Label, effects, confidence (unclipped) and message of the verdict.
+
+    The confidence of ``explained`` is the explained share x (0.4 + 0.6 ``sep``) x the margin of
+    the gap's significance, ``rho / SIGNIFICANT_RHO - 1`` clipped to 0..1 (a gap barely above
+    the noise is weak evidence: a fresh trial's gap may be noise).
+    """
     rho0, noise = gap.rho, gap.noise_N
     if not rho0 > SIGNIFICANT_RHO:
         conf = float(np.clip(1.0 - rho0 / SIGNIFICANT_RHO, 0.0, 1.0)) * 0.5 + 0.5
@@ -125,7 +130,10 @@ def _classify(
         )
         return "none", [], conf, msg
     if e_share >= EXPLAINED_SHARE:
-        conf = float(np.clip(e_share, 0.0, 1.0)) * (0.4 + 0.6 * sep)
+        # weak evidence where the gap is barely significant: the margin above the threshold,
+        # as the confidence of ``none`` is the margin below it (full from twice the threshold)
+        margin = float(np.clip(rho0 / SIGNIFICANT_RHO - 1.0, 0.0, 1.0))
+        conf = float(np.clip(e_share, 0.0, 1.0)) * (0.4 + 0.6 * sep) * margin
         msg = (
             f"{' + '.join(chosen)} explains {100 * min(e_share, 1.0):.0f} % of the systematic "
             "gap on held-out trials"
@@ -169,7 +177,7 @@ def judge(
     e_share = search.share(chosen)
     rms_after = rms(search.cv[chosen].residuals)
     sep = separation(search, e_share)
-    label, effects_out, conf, msg = _classify(gap, chosen, e_share, sep)
+    label, effects_out, conf, msg = classify(gap, chosen, e_share, sep)
     worse = worse_phases(gap, search, sigmas) if label == "explained" and sigmas else []
     if worse:
         label, effects_out = "unexplained", []
