@@ -127,14 +127,15 @@ def sensor_split(items: Sequence[dict[str, Any]]) -> list[dict[str, FloatArray]]
     all trials (searched on the grid of the latency candidate, refined by a bounded Brent
     search), linear least squares of::
 
-        F_meas = (1 + b) Hc(t - d) + a + c t               handle force sensor: gain, offset,
-                                                           drift, delay (a first-order lag of
-                                                           the sensor shows as extra delay)
+        F_meas = (1 + b + k t) Hc(t - d) + a + c t         handle force sensor: gain, offset,
+                                                           their drifts, delay (a first-order
+                                                           lag of the sensor shows as extra
+                                                           delay); t from the trial's start
                  + Fc s + mu s |F_jaw g'/L3| + beta v      friction of the chain (the terms of
                                                            the mechanism_friction candidate)
 
-    The sensor part is ``(1 + b) Hc(t - d) + a + c t - Hc(t)``; the mechanism part is the rest
-    of ``r``: the friction terms and what neither explains (the chain between the jaw load cell
+    The sensor part is ``(1 + b + k t) Hc(t - d) + a + c t - Hc(t)``; the mechanism part is the
+    rest of ``r``: the friction terms and what neither explains (the chain between the jaw load cell
     and the handle is the mechanism).
 
     Parameters
@@ -157,7 +158,8 @@ def sensor_split(items: Sequence[dict[str, Any]]) -> list[dict[str, FloatArray]]
         for it in items:
             t = it["t"]
             hd = np.interp(t - d, it["raw_t"], it["hc_raw"])
-            a_sen = np.column_stack([np.ones_like(t), hd, t - t[0]])
+            ts = t - t[0]
+            a_sen = np.column_stack([np.ones_like(t), hd, ts, ts * hd])
             a = np.column_stack([a_sen, it["fric"]])
             y = it["F"] - hd
             c, *_ = np.linalg.lstsq(a, y, rcond=None)

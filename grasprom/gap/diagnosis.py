@@ -131,6 +131,12 @@ def _contact_trials(
             "only one trial in contact: no cross-validation by trial is possible; effects are "
             "judged in-sample and the confidence is capped at 0.3"
         )
+    elif len({(p.thickness, p.material) for p in preps}) == 1:
+        warn_list.append(
+            f"all trials in contact have one nominal thickness ({preps[0].thickness:g} mm, "
+            f"{preps[0].material}): the held-out checks do not test the model across "
+            "thicknesses, and its prediction at another may be worse than the baseline's"
+        )
     return preps, warn_list
 
 

@@ -155,6 +155,17 @@ EFFECTS: dict[str, EffectSpec] = {
             "time delay between the measured angle and the measured force: "
             "F_meas(t) = Fi(theta(t - d))",
         ),
+        EffectSpec(
+            "sensor_drift",
+            "sensor",
+            (
+                ParamSpec("offset_rate_N_per_s", "N/s", "linear", -2.0, 2.0),
+                ParamSpec("gain_rate_per_s", "1/s", "linear", -0.2, 0.2),
+            ),
+            "slow (thermal) drift of the handle force sensor from its zeroed, calibrated state "
+            "at the first sample of the trial: F_meas = Fi + r t + k t Fi, t = time since the "
+            "trial's first sample (s); r the offset drift (N/s), k the gain drift (1/s)",
+        ),
     )
 }
 """The candidate library (names are a contract)."""

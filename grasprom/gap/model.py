@@ -146,6 +146,9 @@ def _linear_basis(
             cols.append(fe * gp)
         elif e == "sensor_offset_gain":
             cols += [np.ones_like(f0), f0]
+        elif e == "sensor_drift":
+            ts = prep.t - prep.raw_t[0]  # time since the trial's first sample (s)
+            cols += [ts, ts * f0]
     return np.column_stack(cols) if cols else np.zeros((f0.size, 0))
 
 

@@ -26,7 +26,7 @@ RENDERED_EFFECTS = (
 )
 """Effects of the instrument the controller renders (:func:`controller_params_from_augmented`)."""
 
-MEASUREMENT_EFFECTS = ("sensor_offset_gain", "latency")
+MEASUREMENT_EFFECTS = ("sensor_offset_gain", "latency", "sensor_drift")
 """Effects of the measurement (force sensor, time base): never rendered by the controller."""
 
 
@@ -120,7 +120,8 @@ def _mechanism_fields(ev: _Effects) -> dict[str, Any]:
 
 
 def _measurement(ev: _Effects) -> dict[str, float]:
-    """``offset_N`` (N), ``gain`` (1), ``delay_s`` (s) of the measurement effects."""
+    """``offset_N`` (N), ``gain`` (1), ``delay_s`` (s) of the measurement effects, and with a
+    ``sensor_drift`` its ``offset_rate_N_per_s`` (N/s) and ``gain_rate_per_s`` (1/s)."""
     eff = ev.eff
     measurement = {"offset_N": 0.0, "gain": 1.0, "delay_s": 0.0}
     if "sensor_offset_gain" in eff:
@@ -128,6 +129,9 @@ def _measurement(ev: _Effects) -> dict[str, float]:
         measurement["gain"] = float(eff["sensor_offset_gain"]["gain"])
     if "latency" in eff:
         measurement["delay_s"] = ev.nonneg("latency", "delay_s")
+    if "sensor_drift" in eff:
+        for k in ("offset_rate_N_per_s", "gain_rate_per_s"):
+            measurement[k] = float(eff["sensor_drift"][k])
     return measurement
 
 
@@ -157,6 +161,8 @@ def controller_params_from_augmented(
                                 :data:`PRONY_TAUS_S`
     sensor_offset_gain          not rendered (a property of the force sensor): returned in
                                 ``measurement`` (``offset_N``, ``gain``)
+    sensor_drift                not rendered (a drift of the force sensor): ``measurement``
+                                (``offset_rate_N_per_s``, ``gain_rate_per_s``)
     latency                     not rendered (a delay of the measurement): ``measurement``
                                 (``delay_s``)
     ==========================  ===============================================================
@@ -180,7 +186,8 @@ def controller_params_from_augmented(
         With the rendered effects.
     dict
         ``rendered`` and ``measurement_only`` (effect names), ``measurement`` (``offset_N`` N,
-        ``gain`` 1, ``delay_s`` s; 0, 1, 0 when absent: apply them with
+        ``gain`` 1, ``delay_s`` s; 0, 1, 0 when absent; with a ``sensor_drift`` also
+        ``offset_rate_N_per_s`` N/s and ``gain_rate_per_s`` 1/s: apply them with
         :func:`measured_handle_force_N`), ``warnings`` (list of str).
     """
     eff = model.effects
@@ -203,10 +210,11 @@ def controller_params_from_augmented(
 def measured_handle_force_N(
     time_s: FloatArray, force_handle_N: FloatArray, measurement: dict[str, float]
 ) -> FloatArray:
-    """What the force sensor of the augmented model would read: offset, gain and latency.
+    """What the force sensor of the augmented model would read: offset, gain, drift, latency.
 
-    ``offset_N + gain F(t - delay_s)``, ``F`` interpolated linearly in time and held at its first
-    value before the first sample.
+    ``offset_N + r t + (gain + k t) F(t - delay_s)``, ``F`` interpolated linearly in time and
+    held at its first value before the first sample; ``t`` the time since the first sample (s),
+    ``r`` = ``offset_rate_N_per_s`` and ``k`` = ``gain_rate_per_s`` (0 when absent).
 
     Parameters
     ----------
@@ -215,7 +223,8 @@ def measured_handle_force_N(
     force_handle_N : ndarray
         Handle force, N.
     measurement : dict
-        ``offset_N`` (N), ``gain`` (1), ``delay_s`` (s), as returned by
+        ``offset_N`` (N), ``gain`` (1), ``delay_s`` (s), optionally ``offset_rate_N_per_s``
+        (N/s) and ``gain_rate_per_s`` (1/s), as returned by
         :func:`controller_params_from_augmented`.
 
     Returns
@@ -228,4 +237,10 @@ def measured_handle_force_N(
     d = float(measurement.get("delay_s", 0.0))
     if d > 0:
         f = np.interp(t - d, t, f)
-    return float(measurement.get("offset_N", 0.0)) + float(measurement.get("gain", 1.0)) * f
+    ts = t - t[0]
+    offset = (
+        float(measurement.get("offset_N", 0.0))
+        + float(measurement.get("offset_rate_N_per_s", 0.0)) * ts
+    )
+    gain = float(measurement.get("gain", 1.0)) + float(measurement.get("gain_rate_per_s", 0.0)) * ts
+    return offset + gain * f

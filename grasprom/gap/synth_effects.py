@@ -16,6 +16,7 @@ LIBRARY_EFFECTS = (
     "tissue_stiffness_scale",
     "sensor_offset_gain",
     "latency",
+    "sensor_drift",
 )
 """Effects the diagnosis has a candidate for (names of :data:`grasprom.gap.EFFECTS`)."""
 
@@ -88,6 +89,12 @@ def random_effect_params(name: str, rng: np.random.Generator) -> dict[str, float
         }
     if name == "latency":
         return {"delay_s": rng.uniform(0.008, 0.04), "lag_s": rng.uniform(0.001, 0.006)}
+    if name == "sensor_drift":
+        return {
+            "offset_rate_N_per_s": _signed(rng, 0.04, 0.15),  # initial zero drift
+            "gain_rate_per_s": _signed(rng, 0.004, 0.02),  # initial sensitivity drift
+            "thermal_tau_s": rng.uniform(15.0, 60.0),  # the drifts level off with this time
+        }
     if name == "motor_cogging":
         return {
             "amplitude_N": rng.uniform(0.3, 1.0),

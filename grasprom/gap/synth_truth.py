@@ -27,6 +27,9 @@ tissue_stiffness_scale      gap-dependent scale, one factor in bending and anoth
 sensor_offset_gain          offset, gain, linear drift and a small quadratic non-linearity
                             (candidate: offset + gain)
 latency                     pure delay plus a first-order sensor lag (candidate: pure delay)
+sensor_drift                thermal drift of zero and sensitivity from the zeroed sensor at the
+                            trial's start, levelling off as a first-order approach
+                            ``r tau (1 - exp(-t/tau))`` (candidate: linear in time)
 motor_cogging               **outside the library**: handle-force ripple periodic in the motor
                             angle (12 cogs per motor turn, 5.41 motor turns per handle radian)
 ==========================  ===================================================================
@@ -303,15 +306,34 @@ def _true_handle_force(
     return fi
 
 
+def thermal_drift(time: np.ndarray, rate: float, tau_s: float) -> np.ndarray:
+    """Drift of a first-order thermal approach with initial ``rate`` (per s) and time constant
+    ``tau_s`` (s): ``rate tau (1 - exp(-t / tau))``, in the units of ``rate`` x s."""
+    return rate * tau_s * -np.expm1(-(time - time[0]) / tau_s)
+
+
+def _drifting_reading(fi: np.ndarray, time: np.ndarray, p: dict[str, float]) -> np.ndarray:
+    """Reading (N) of a sensor zeroed and calibrated at the first sample whose zero and
+    sensitivity then drift (:func:`thermal_drift`; ``offset_rate_N_per_s`` N/s,
+    ``gain_rate_per_s`` 1/s, ``thermal_tau_s`` s)."""
+    tau = p["thermal_tau_s"]
+    offset = thermal_drift(time, p["offset_rate_N_per_s"], tau)
+    gain = 1.0 + thermal_drift(time, p["gain_rate_per_s"], tau)
+    return offset + gain * fi
+
+
 def _sensor_reading(
     fi: np.ndarray, time: np.ndarray, effects: dict[str, dict[str, float]], dt: float
 ) -> np.ndarray:
-    """Noise-free handle force sensor reading (N): lag, delay, offset, gain, drift, quadratic."""
+    """Noise-free handle force sensor reading (N): lag, delay, thermal drift, offset, gain,
+    drift, quadratic."""
     if "latency" in effects:
         la = effects["latency"]
         a = math.exp(-dt / la["lag_s"])
         fi = lfilter([1 - a], [1, -a], fi, zi=[a * fi[0]])[0]
         fi = np.interp(time - la["delay_s"], time, fi)
+    if "sensor_drift" in effects:
+        fi = _drifting_reading(fi, time, effects["sensor_drift"])
     if "sensor_offset_gain" in effects:
         so = effects["sensor_offset_gain"]
         fi = (

@@ -79,24 +79,47 @@ class Verdict:
     confidence_raw: float | None = None
 
 
-def _separation(search: CandidateSearch, e_share: float) -> float:
-    """Separation (0..1) of the chosen set from the runner-up: ratio of the gaps they leave."""
+def gap_left(search: CandidateSearch, key: tuple[str, ...]) -> float:
+    """Systematic gap an effect set leaves on held-out trials in noise units: the systematic
+    ratio ``(chi2 - N0) / N`` (1), floored at :data:`SIGNIFICANT_RHO` (below it a gap is not
+    told from the noise)."""
+    rho = (search.cv[key].chi2 - search.n_null) / max(search.n_samples, 1)
+    return max(rho, SIGNIFICANT_RHO)
+
+
+def separation(search: CandidateSearch, e_share: float) -> float:
+    """Separation (0..1) of the chosen set from the runner-up: ratio of the gaps they leave,
+    1 at >= 5x.
+
+    Measured two ways, the larger counts: as shares of the baseline's systematic gap (floored
+    at 2 %) and in noise units (:func:`gap_left`).  On a baseline gap of millions of chi2 a
+    single can explain 99.9 % and still leave a significant gap that the chosen pair removes:
+    the shares do not tell the two apart, the gaps left in noise units do.
+    """
     chosen, best = search.chosen, search.best
-    runner = [k for k in search.singles if k != best]
     if len(chosen) == 1:
-        alt = max((search.share(k) for k in runner), default=0.0)
+        alts = [k for k in search.singles if k != best]
     else:
-        alt = max([search.share(best)] + [search.share(k) for k in search.pair_rows if k != chosen])
-    # separation from the runner-up: ratio of the systematic gaps they leave
+        alts = [best] + [k for k in search.pair_rows if k != chosen]
+    alt = max((search.share(k) for k in alts), default=0.0)
     u_best = max(1.0 - e_share, 0.02)
     u_alt = max(1.0 - alt, 0.02)
-    return float(np.clip(math.log(u_alt / u_best) / math.log(5.0), 0.0, 1.0))
+    by_share = math.log(u_alt / u_best)
+    by_noise = (
+        math.log(min(gap_left(search, k) for k in alts) / gap_left(search, chosen)) if alts else 0
+    )
+    return float(np.clip(max(by_share, by_noise) / math.log(5.0), 0.0, 1.0))
 
 
-def _classify(
+def classify(
     gap: BaselineGap, chosen: tuple[str, ...], e_share: float, sep: float
 ) -> tuple[str, list[str], float, str]:
-    """Label, effects, confidence (unclipped) and message of the verdict."""
+    """Label, effects, confidence (unclipped) and message of the verdict.
+
+    The confidence of ``explained`` is the explained share x (0.4 + 0.6 ``sep``) x the margin of
+    the gap's significance, ``rho / SIGNIFICANT_RHO - 1`` clipped to 0..1 (a gap barely above
+    the noise is weak evidence: a fresh trial's gap may be noise).
+    """
     rho0, noise = gap.rho, gap.noise_N
     if not rho0 > SIGNIFICANT_RHO:
         conf = float(np.clip(1.0 - rho0 / SIGNIFICANT_RHO, 0.0, 1.0)) * 0.5 + 0.5
@@ -107,7 +130,10 @@ def _classify(
         )
         return "none", [], conf, msg
     if e_share >= EXPLAINED_SHARE:
-        conf = float(np.clip(e_share, 0.0, 1.0)) * (0.4 + 0.6 * sep)
+        # weak evidence where the gap is barely significant: the margin above the threshold,
+        # as the confidence of ``none`` is the margin below it (full from twice the threshold)
+        margin = float(np.clip(rho0 / SIGNIFICANT_RHO - 1.0, 0.0, 1.0))
+        conf = float(np.clip(e_share, 0.0, 1.0)) * (0.4 + 0.6 * sep) * margin
         msg = (
             f"{' + '.join(chosen)} explains {100 * min(e_share, 1.0):.0f} % of the systematic "
             "gap on held-out trials"
@@ -150,8 +176,8 @@ def judge(
     rms_before = rms(gap.residuals)
     e_share = search.share(chosen)
     rms_after = rms(search.cv[chosen].residuals)
-    sep = _separation(search, e_share)
-    label, effects_out, conf, msg = _classify(gap, chosen, e_share, sep)
+    sep = separation(search, e_share)
+    label, effects_out, conf, msg = classify(gap, chosen, e_share, sep)
     worse = worse_phases(gap, search, sigmas) if label == "explained" and sigmas else []
     if worse:
         label, effects_out = "unexplained", []
@@ -177,18 +203,25 @@ def judge(
 
 
 TIE_SHARE = 0.05
-"""A runner-up within this explained share of the chosen set explains the data as well."""
+"""A runner-up within this explained share of the chosen set explains the data as well..."""
+TIE_GAP = 2.0
+"""... unless it leaves more than this multiple of the chosen set's gap in noise units
+(:func:`gap_left`)."""
 
 
 def runner_up(search: CandidateSearch) -> tuple[str, ...] | None:
     """The best other single effect (or pair) if it explains within :data:`TIE_SHARE` of the
-    chosen set's share, else None."""
+    chosen set's share and leaves at most :data:`TIE_GAP` x its gap (:func:`gap_left`: a
+    single leaving a significant gap that the chosen pair removes does not explain the data as
+    well), else None."""
     chosen = search.chosen
     others = [k for k in (*search.singles, *search.pair_rows) if k != chosen]
     if not others:
         return None
     best = max(others, key=search.share)
-    return best if search.share(best) >= search.share(chosen) - TIE_SHARE else None
+    if search.share(best) < search.share(chosen) - TIE_SHARE:
+        return None
+    return best if gap_left(search, best) <= TIE_GAP * gap_left(search, chosen) else None
 
 
 def checked_verdict(v: Verdict, search: CandidateSearch, measured_block: str | None,

@@ -128,6 +128,20 @@ def test_single_trial_caps_confidence(surrogate):
     assert any("cross-validation" in w for w in d.report["warnings"])
 
 
+def test_one_thickness_is_warned(surrogate):
+    """Trials of one nominal thickness do not test the model across thicknesses (a jaw
+    compliance fitted on two trials of 1.11 mm predicted a fresh trial of 1.44 mm worse than the
+    baseline): warned; trials of two thicknesses are not."""
+    case = synth_case(["sensor_offset_gain"], seed=3, surrogate=surrogate, n_trials=3)
+    trials = _trials(case, surrogate)
+    assert trials[0].thickness_mm == trials[1].thickness_mm != trials[2].thickness_mm
+    for pick, warned in (([0, 1], True), ([0, 2], False)):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            d = gap.diagnose([trials[i] for i in pick], surrogate, CHAIN)
+        assert any("one nominal thickness" in w for w in d.report["warnings"]) is warned
+
+
 # ------------------------------------------------------------------------------ blind benchmark
 # Small fixed-seed version of benchmarks/bench_diagnosis.py: one case per library effect, two
 # nulls, one pair, one out-of-library case (seeds fixed; trials synthesised with withheld truth).

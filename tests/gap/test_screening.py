@@ -9,6 +9,7 @@ screens' thresholds; clean trials of the project's own synthesiser must pass eve
 from __future__ import annotations
 
 import json
+import math
 import warnings
 
 import numpy as np
@@ -121,13 +122,18 @@ def test_cli_writes_no_augmented_model_and_removes_a_stale_one(surrogate, tmp_pa
     assert rep["augmented_model"] is None and rep["verdict"]["reasons"]
 
 
-def _search(shares: dict):
+def _search(shares: dict, left: dict | None = None):
+    """A stand-in candidate search: explained shares and the systematic ratio each set leaves
+    held-out (default 0.5, within the noise), on 1000 samples."""
     from types import SimpleNamespace
 
     keys = list(shares)
+    n = 1000
+    cv = {k: SimpleNamespace(chi2=n * (1.0 + (left or {}).get(k, 0.5))) for k in keys}
     return SimpleNamespace(chosen=keys[0], singles=[k for k in keys if len(k) == 1],
                            pair_rows=[k for k in keys if len(k) == 2],
-                           share=lambda k: shares[k])  # fmt: skip
+                           share=lambda k: shares[k], cv=cv, n_null=n,
+                           n_samples=n)  # fmt: skip
 
 
 def test_confidence_is_lowered_for_a_tie_and_a_block_disagreement():
@@ -152,6 +158,24 @@ def test_confidence_is_lowered_for_a_tie_and_a_block_disagreement():
     assert checked_verdict(none, tie, "tissue", frozenset({"mechanism"})) == none
 
 
+def test_a_single_leaving_a_significant_gap_is_no_tie_for_the_pair():
+    """A pair that removes the gap a single leaves (systematic ratio 0.4 vs 30 held-out) is no
+    tie with that single even at 99.9 % vs 99.95 % of a huge baseline gap; their separation is
+    the ratio of the gaps left in noise units (>= 5x: 1), not of the floored shares (0)."""
+    from grasprom.gap.verdict import runner_up, separation
+
+    pair, single = ("backlash", "latency"), ("backlash",)
+    shares = {pair: 0.9995, single: 0.999}
+    resolved = _search(shares, {pair: 0.4, single: 30.0})
+    resolved.best = single
+    assert runner_up(resolved) is None
+    assert separation(resolved, 0.9995) == 1.0
+    same = _search(shares, {pair: 0.4, single: 1.5})  # both about at the noise: a tie
+    same.best = single
+    assert runner_up(same) == single
+    assert separation(same, 0.9995) == pytest.approx(math.log(1.5) / math.log(5.0))
+
+
 def test_calibrated_confidence_is_monotone_capped_and_only_for_explained():
     from grasprom.gap.verdict import Verdict, calibrated
 
@@ -161,7 +185,10 @@ def test_calibrated_confidence_is_monotone_capped_and_only_for_explained():
 
     raw = [0.0, 0.1, 0.3, 0.6, 0.9, 1.0]
     cal = [calibrated(v("explained", c), 4).confidence for c in raw]
-    assert all(b > a for a, b in zip(cal, cal[1:])) and 0.4 < cal[0] and cal[-1] < 1.0
+    assert all(b > a for a, b in zip(cal, cal[1:])) and 0.0 < cal[0] and cal[-1] < 1.0
+    # the fitted map states less than even odds for a raw confidence of 0.1 (a halved,
+    # unseparated or barely significant verdict) and more than 0.9 for a clear one
+    assert cal[1] < 0.5 and cal[-1] > 0.9
     assert calibrated(v("explained", 0.9), 4).confidence_raw == 0.9
     assert calibrated(v("explained", 0.9), 1).confidence == 0.3  # one trial: capped
     assert calibrated(v("unexplained", 0.9), 4).confidence == 0.9
@@ -213,3 +240,23 @@ def test_reconstruct_angle_follows_the_acceleration_out_of_a_rest(dt):
     assert moving.mean() > 0.85
     assert np.all(np.abs(est - true)[moving] <= bound[moving])
     assert np.all(err[~moving] == 0.0)
+
+
+def test_explained_confidence_drops_with_the_significance_margin():
+    """An ``explained`` verdict on a gap barely above the noise is weak evidence: its raw
+    confidence is scaled by the margin ``rho - 1`` (0..1), as ``none`` is by the margin below;
+    full from rho = 2 (the realistic-acquisition backlash of seed 2024017, rho 1.08, stated
+    0.94, predicted a fresh trial 14 % worse)."""
+    from types import SimpleNamespace
+
+    from grasprom.gap.verdict import classify
+
+    def conf(rho):
+        g = SimpleNamespace(rho=rho, noise_N=0.05, summary={"systematic_rms_N": 0.05})
+        label, effects, c, _ = classify(g, ("backlash",), 1.0, 1.0)
+        assert label == "explained" and effects == ["backlash"]
+        return c
+
+    assert conf(1.08) == pytest.approx(0.08)
+    assert conf(1.5) == pytest.approx(0.5)
+    assert conf(2.0) == conf(40.0) == pytest.approx(1.0)
