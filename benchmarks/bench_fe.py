@@ -4,6 +4,7 @@ Usage::
 
     python benchmarks/bench_fe.py [--thickness 0.8,1.4,2.0] [--material mr,nh,le]
     python benchmarks/bench_fe.py --crease [--thickness ...] [--material ...]
+    python benchmarks/bench_fe.py --contact-laws --thickness 1.4
 
 ``--crease``: the force in the crease band (six gaps from 2 t + 0.05 mm to 4 t, and densely
 between the load steps) on the mesh and on its 2x refinement, and their ratio (target: within
@@ -83,6 +84,29 @@ def crease(mesh: MeshSpec, thicknesses: list[float], materials: list[str]) -> fl
     return worst
 
 
+def contact_laws(mesh: MeshSpec, t: float = 1.4, mus=(0.1, 0.3, 1.0)) -> dict:
+    """mr at wall ``t`` (mm): force (N) at gaps 20 / 10 / 5 mm, the gap (mm) where the force
+    passes 20 N and the largest tangential share, frictionless, Coulomb (``mus``) and stick."""
+    gaps = (20.0, 10.0, 5.0)
+    laws = [("frictionless", 0.0), *(("coulomb", m) for m in mus), ("stick", 0.0)]
+    out = {}
+    print(f"{'contact':>16} " + " ".join(f"F@{g:g}mm" for g in gaps) + "  gap@20N  share  wall_s")
+    for contact, mu in laws:
+        t0 = time.perf_counter()
+        spec = CaseSpec("mr", t, mesh=mesh, contact=contact, friction=mu,
+                        solver=SolverSettings(land_on_gaps_mm=gaps))  # fmt: skip
+        tb = run_case(spec).table
+        f = [float(tb.loc[np.isclose(tb["gap_mm"], g), "force_N"].iloc[0]) for g in gaps]
+        g20 = float(np.interp(20.0, tb["force_N"], tb["gap_mm"]))
+        label = contact if contact != "coulomb" else f"coulomb {mu:g}"
+        share = float(tb["tangential_share"].max())
+        wall = time.perf_counter() - t0
+        cells = " ".join(f"{v:8.4f}" for v in f)
+        print(f"{label:>16} {cells}  {g20:7.4f}  {share:5.3f}  {wall:6.1f}", flush=True)
+        out[label] = {"force_N": f, "gap_at_20N_mm": g20, "share_max": share}
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the benchmark; returns the exit code."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -100,6 +124,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument("--profile", action="store_true", help="report assembly/solve time shares")
     p.add_argument("--crease", action="store_true", help="crease-band mesh convergence")
+    p.add_argument(
+        "--contact-laws",
+        action="store_true",
+        help="frictionless, Coulomb 0.1 / 0.3 / 1.0 and stick at the first --thickness (mr)",
+    )
     args = p.parse_args(argv)
     mesh = MeshSpec(
         n_layers=args.n_layers,
@@ -109,6 +138,9 @@ def main(argv: list[str] | None = None) -> int:
         corner_aspect=args.corner_aspect,
     )
     print(f"mesh: {mesh}")
+    if args.contact_laws:
+        contact_laws(mesh, float(args.thickness.split(",")[0]))
+        return 0
     if args.crease:
         ts = [float(x) for x in args.thickness.split(",")]
         crease(mesh, ts, args.material.split(","))

@@ -229,10 +229,17 @@ def _add_model_options(s: argparse.ArgumentParser) -> None:
         "--contact",
         choices=("stick", "frictionless", "coulomb"),
         default=None,
-        help="jaw contact: stick (no sliding, Guachi et al. 2020; 3d default) or frictionless (2d "
-        "default); coulomb is not implemented yet",
+        help="jaw contact: stick (no sliding, Guachi et al. 2020; 3d default), frictionless (2d "
+        "default) or coulomb (2d only, needs --friction: stuck until the tangential force passes "
+        "MU x the normal force, then sliding against MU x the normal force)",
     )
-    s.add_argument("--friction", type=float, default=None, metavar="MU", help="Coulomb coefficient")
+    s.add_argument(
+        "--friction",
+        type=float,
+        default=None,
+        metavar="MU",
+        help="Coulomb friction coefficient (-), with --contact coulomb (no default)",
+    )
     s.add_argument(
         "--tube-length",
         type=float,

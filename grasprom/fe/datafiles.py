@@ -275,17 +275,26 @@ def model_keys(spec: Any) -> dict[str, Any]:
     Returns
     -------
     dict
-        ``model`` (``"2d"`` or ``"3d"``), ``contact``, ``tube_length_mm`` (None in 2D: the
-        plane-strain ring is infinitely long) and ``ends`` (None in 2D).
+        ``model`` (``"2d"`` or ``"3d"``), ``contact``, ``friction`` (the Coulomb coefficient,
+        0 unless ``contact`` is ``coulomb``), ``tube_length_mm`` (None in 2D: the plane-strain
+        ring is infinitely long) and ``ends`` (None in 2D).
     """
+    mu = float(getattr(spec, "friction", 0.0))
     if hasattr(spec, "tube_length_mm"):
         return {
             "model": "3d",
             "contact": spec.contact,
+            "friction": mu,
             "tube_length_mm": spec.tube_length_mm,
             "ends": spec.ends,
         }
-    return {"model": "2d", "contact": spec.contact, "tube_length_mm": None, "ends": None}
+    return {
+        "model": "2d",
+        "contact": spec.contact,
+        "friction": mu,
+        "tube_length_mm": None,
+        "ends": None,
+    }
 
 
 def _sidecar(

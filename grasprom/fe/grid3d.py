@@ -30,7 +30,7 @@ MODELS = ("2d", "3d")
 """FE models of a sweep (``--model``)."""
 
 CONTACT_LAWS = ("stick", "frictionless", "coulomb")
-"""Contact laws of ``--contact`` (``coulomb`` is not implemented yet: refused)."""
+"""Contact laws of ``--contact`` (``coulomb``: 2D only, with ``--friction``)."""
 
 ENDS = ("seed", "free")
 """End conditions of the 3D tube (``--ends``)."""
@@ -46,9 +46,10 @@ class Model3DOptions:
     Parameters
     ----------
     contact : str or None
-        ``stick`` (no sliding once in contact, Guachi et al.'s assumption) or ``frictionless``.
+        ``stick`` (no sliding once in contact, Guachi et al.'s assumption), ``frictionless`` or
+        ``coulomb`` (2D only).
     friction : float or None
-        Coulomb coefficient (only with ``coulomb``, which is refused for now).
+        Coulomb coefficient (-), required with ``coulomb`` and only used there.
     tube_length_mm : float or None
         Length of the modelled tube (mm).
     ends : str or None
@@ -79,12 +80,7 @@ def check_options(
         raise SweepInputError(
             f"--contact: {opts.contact!r} unknown; valid: {', '.join(CONTACT_LAWS)}"
         )
-    if opts.contact == "coulomb":
-        raise SweepInputError(
-            "--contact coulomb: not implemented yet; use stick (no sliding) or frictionless"
-        )
-    if opts.friction is not None:
-        raise SweepInputError("--friction: only used with --contact coulomb (not implemented)")
+    _check_friction(model, opts)
     if opts.ends is not None and opts.ends not in ENDS:
         raise SweepInputError(f"--ends: {opts.ends!r} unknown; valid: {', '.join(ENDS)}")
     tl = opts.tube_length_mm
@@ -97,6 +93,24 @@ def check_options(
     for flag, v in (mesh2d or {}).items():
         if model == "3d" and v is not None:
             raise SweepInputError(f"{flag}: a 2D mesh option (--model 2d)")
+
+
+def _check_friction(model: str, opts: Model3DOptions) -> None:
+    """``--contact coulomb`` needs ``--friction MU`` > 0 and the 2D model; MU needs coulomb."""
+    mu = opts.friction
+    if opts.contact == "coulomb":
+        if model == "3d":
+            raise SweepInputError(
+                "--contact coulomb: 2D only for now (--model 2d); the 3D model has stick "
+                "(no sliding, its default) and frictionless"
+            )
+        if mu is None:
+            raise SweepInputError("--contact coulomb: needs --friction MU (a coefficient > 0)")
+    if mu is not None:
+        if opts.contact != "coulomb":
+            raise SweepInputError("--friction: only used with --contact coulomb")
+        if not (isinstance(mu, int | float) and math.isfinite(mu) and 0 < mu <= 10):
+            raise SweepInputError(f"--friction: must be a coefficient in (0, 10], got {mu!r}")
 
 
 def to_2d(specs: Sequence[Any], opts: Model3DOptions) -> list[Any]:
@@ -115,7 +129,8 @@ def to_2d(specs: Sequence[Any], opts: Model3DOptions) -> list[Any]:
     """
     if opts.contact is None:
         return list(specs)
-    return [dataclasses.replace(s, contact=opts.contact) for s in specs]
+    mu = float(opts.friction) if opts.contact == "coulomb" else 0.0
+    return [dataclasses.replace(s, contact=opts.contact, friction=mu) for s in specs]
 
 
 def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, int]) -> list[Any]:

@@ -6,14 +6,15 @@ Model (Guachi et al.'s "CS" cylindrical approximation):
   symmetry (``x >= 0, y >= 0``); symmetry ``u_x = 0`` on ``x = 0`` and ``u_y = 0`` on ``y = 0``;
 * a rigid flat jaw ``y = h`` descends from first touch (``h = D/2``) to ``h = closed_gap / 2``;
   the jaw gap is ``2 h``; node-to-plane contact with the outer wall, ``frictionless`` (default)
-  or ``stick`` (Guachi et al.'s "no sliding at the interface": a node that touches the jaw keeps its
-  ``x`` until it lifts off);
+  ``stick`` (Guachi et al.'s "no sliding at the interface": a node that touches the jaw keeps its
+  ``x`` until it lifts off) or ``coulomb`` (stuck until the tangential reaction passes ``mu``
+  times the normal one, then sliding against a friction force ``mu N``);
 * self-contact of the inner wall with its mirror image is contact with the rigid plane ``y = 0``
   (frictionless), which the inner wall reaches once the walls meet (``gap ~ 2 t``);
 * contact is solved exactly with a primal active set: active nodes get a prescribed normal
   displacement and are released when their reaction turns tensile;
-* P2 triangles (6-point rule) with a constant pressure / dilatation per element (three-field
-  mean dilatation, a P2/P0 pair, inf-sup stable in 2D) against volumetric locking; the
+* P2 triangles + cubic bubble with a linear discontinuous pressure / dilatation per element
+  (P2B/P1, default; or the P2/P0 mean dilatation) against volumetric locking; the
   structured mesh puts the diagonal through the inner fold corner so that two triangles share it;
 * Newton-Raphson on the total potential energy with consistent tangent, an energy line search,
   a Levenberg shift when the tangent is not positive definite, and adaptive displacement
@@ -61,7 +62,7 @@ COLUMNS = (
 #: all columns a 2D case writes, in order: :data:`COLUMNS` and the stick reaction's share
 COLUMNS_2D = (*COLUMNS, "tangential_share")
 
-CONTACTS_2D = ("frictionless", "stick")
+CONTACTS_2D = ("frictionless", "stick", "coulomb")
 """Jaw contact laws of the 2D model (:attr:`CaseSpec.contact`)."""
 
 #: "unit, meaning" of every column
@@ -274,7 +275,11 @@ class CaseSpec:
         Poisson ratio override for the material (None: material default 0.49).
     contact : str
         Jaw contact law, one of :data:`CONTACTS_2D`: ``"frictionless"`` (default: the shipped
-        2D data set) or ``"stick"`` (no sliding once a node touches the jaw, Guachi et al. (2020)).
+        2D data set), ``"stick"`` (no sliding once a node touches the jaw, Guachi et al. (2020))
+        or ``"coulomb"`` (stuck until the tangential reaction passes ``friction`` times the
+        normal one, then sliding against a friction force of that size).
+    friction : float
+        Coulomb coefficient (-), only with ``contact="coulomb"`` (> 0 there, 0 otherwise).
     """
 
     material: str
@@ -287,6 +292,7 @@ class CaseSpec:
     solver: SolverSettings = field(default_factory=SolverSettings)
     nu: float | None = None
     contact: str = "frictionless"
+    friction: float = 0.0
 
     def make_material(self) -> Material:
         """The material object of this case."""
@@ -638,23 +644,34 @@ def _prox_terms(disc, fixed: np.ndarray, prox):
     return e, (lambda u: c * (u - u_ref) * free), sp.diags(c * free, format="csr")
 
 
-def _newton(disc, material, u, fixed, settings: SolverSettings, fscale: float, prox=None):
+def _newton(
+    disc, material, u, fixed, settings: SolverSettings, fscale: float, prox=None, extra=None
+):
     """Newton-Raphson with energy line search on the free dofs; returns (u, f, K, iters).
 
     ``prox = (c, u_ref)`` adds ``c/2 |u - u_ref|^2`` (N/mm per mm^2) to the energy: one step
     of the proximal-point iteration of :func:`_relax`; ``f`` and ``K`` returned are then the
-    regularised ones.
+    regularised ones.  ``extra = (energy, force, tangent)`` (functions of ``u``, or None) adds
+    a potential of the contact (the Coulomb friction of :class:`_Friction`); ``f`` returned
+    is without its force (the internal force: at a node in contact its ``x`` part is the
+    jaw's tangential reaction, as at a fixed dof).
     """
     e_prox, f_prox, k_prox = _prox_terms(disc, fixed, prox)
+    e_x, f_x, k_x = extra if extra is not None else (None, None, None)
 
     def assemble_p(u, tangent=True):
         f, K, minJ = assemble(disc, material, u, tangent)
-        if f is None or prox is None:
+        if f is None:
             return f, K, minJ
-        return f + f_prox(u), (K + k_prox if K is not None else None), minJ
+        if prox is not None:
+            f, K = f + f_prox(u), (K + k_prox if K is not None else None)
+        if extra is not None:
+            f, K = f + f_x(u), (K + k_x(u) if K is not None else None)
+        return f, K, minJ
 
     def energy_p(u):
-        return energy(disc, material, u) + e_prox(u)
+        e = energy(disc, material, u) + e_prox(u)
+        return e + e_x(u) if extra is not None else e
 
     f, K, minJ = assemble_p(u)
     if f is None:
@@ -665,7 +682,7 @@ def _newton(disc, material, u, fixed, settings: SolverSettings, fscale: float, p
         r[fixed] = 0.0
         rnorm = np.linalg.norm(r)
         if rnorm <= tol:
-            return u, f, K, it - 1
+            return u, (f - f_x(u) if extra is not None else f), K, it - 1
         Kc = _constrained_system(disc, K, fixed)
         shift = 0.0
         for _ in range(6):
@@ -717,6 +734,93 @@ class _State:
     stick: bool = False
     f: np.ndarray | None = None
     K: sp.csr_matrix | None = None
+    mu: float = np.inf  # Coulomb coefficient (finite: contact="coulomb", :class:`_Friction`)
+    lag_newton: int = 0  # Newton iterations spent re-solving for the lagged friction normal
+
+
+FRICTION_EPS_MM = 1e-3
+"""Stick regularisation of ``contact="coulomb"`` (mm): a node in contact creeps by up to about
+this before its friction force reaches ``mu N`` (a micrometre: 1 % of the 2D mesh's smallest
+element, far below the surrogate's 0.02 mm gap budget)."""
+
+
+@dataclass
+class _Friction:
+    """Coulomb friction of the outer nodes on the jaw during one load step (internal).
+
+    Each node in contact with the jaw is held at its anchor ``a`` (where it was at the start of
+    the step, or where it touched) by the regularised Coulomb potential
+    ``c (sqrt(d^2 + e^2) - e)``, ``d = x - a``, ``c = mu N``, ``e`` = :data:`FRICTION_EPS_MM`:
+    its force ``c d / sqrt(d^2 + e^2)`` is stiff (``c / e``) about ``d = 0`` (stick) and tends
+    to ``c`` (sliding); smooth and convex, so Newton with the energy line search handles stick
+    and slip without an active set.  ``N`` is the normal reaction of the previous solve
+    (lagged: the step is re-solved until ``N`` settles).  At the end of a step the anchor
+    follows the slide beyond ``e``.  The jaw does not move in ``x``.
+    """
+
+    mu: float
+    eps: float  # mm, the stick regularisation (slide at which the force is c / sqrt(2))
+    anchor: np.ndarray  # x (mm) of each outer node's anchor for this step
+    normal: np.ndarray  # N (N/mm, >= 0) of each outer node, as used in the cap
+
+    @classmethod
+    def start(cls, disc, state: _State) -> _Friction | None:
+        """The friction state at the start of a step (None unless Coulomb contact)."""
+        if not np.isfinite(state.mu):
+            return None
+        on = disc.outer_nodes
+        normal = np.zeros(on.size) if state.f is None else np.maximum(-state.f[2 * on + 1], 0)
+        return cls(state.mu, FRICTION_EPS_MM, state.anchor_x.copy(), normal)
+
+    def terms(self, disc, jaw_active: np.ndarray):
+        """Energy (N mm/mm), force (N/mm) and tangent (N/mm^2) of the friction potential as
+        functions of ``u`` (the ``extra`` of :func:`_newton`)."""
+        sel = jaw_active & (self.normal > 0)
+        on = disc.outer_nodes[sel]
+        a, c = self.anchor[sel], self.mu * self.normal[sel]
+        eps = self.eps  # mm: the slide at which the force reaches c / sqrt(2)
+        X0 = disc.X[on, 0]
+
+        def root(u):
+            d = X0 + u[2 * on] - a
+            return d, np.sqrt(d * d + eps * eps)
+
+        def e(u):
+            d, r = root(u)
+            return float((c * (r - eps)).sum())
+
+        def f(u):
+            d, r = root(u)
+            out = np.zeros(disc.ndof)
+            out[2 * on] = c * d / r
+            return out
+
+        def K(u):
+            d, r = root(u)
+            diag = np.zeros(disc.ndof)
+            diag[2 * on] = c * eps * eps / r**3
+            return sp.diags(diag, format="csr")
+
+        return e, f, K
+
+    def settled(self, disc, f: np.ndarray, jaw_active: np.ndarray, rtol: float = 1e-5) -> bool:
+        """Take the normal reactions of the last solve; True if they moved by at most ``rtol``
+        of the largest one (the cap it used is then the cap of this solution)."""
+        n_new = np.maximum(-f[2 * disc.outer_nodes + 1], 0.0)
+        scale = max(float(n_new[jaw_active].max(initial=0.0)), 1e-12)
+        moved = np.abs(n_new - self.normal)[jaw_active].max(initial=0.0) > rtol * scale
+        self.normal = n_new
+        return not moved
+
+    def step_end_anchor(self, disc, jaw_active: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Anchors (mm) for the next step: moved by the slide beyond the elastic part."""
+        on = disc.outer_nodes
+        x = disc.X[on, 0] + u[2 * on]
+        e = self.eps
+        d = x - self.anchor
+        out = self.anchor.copy()
+        out[jaw_active] = (x - np.clip(d, -e, e))[jaw_active]
+        return out
 
 
 def _fixed_and_values(disc, state: _State, h: float):
@@ -742,16 +846,20 @@ def _solve_step(
     """Solve equilibrium at jaw height ``h`` (mm) with the active-set loop.
 
     ``prox = (c, u_ref)``: solve the proximally regularised problem instead (:func:`_relax`).
+    Returns the state and the Newton iterations that measure the step's effort (step control);
+    Coulomb contact's re-solves for the lagged normal force are in ``state.lag_newton``.
     """
     jaw_active = state.jaw_active.copy()
     floor_active = state.floor_active.copy()
     anchor_x = state.anchor_x.copy()
+    fric = _Friction.start(disc, state)
     u = state.u.copy()
     K_old = state.K
-    iters = 0
+    iters = lag = 0
+    lagged = False  # this pass only re-solves for the friction normal of the last pass
     tol_pen = 1e-9 * max(1.0, h)
     for _ in range(settings.max_active_set):
-        trial = _State(u, jaw_active, floor_active, anchor_x, state.stick)
+        trial = _State(u, jaw_active, floor_active, anchor_x, state.stick, mu=state.mu)
         fixed, values = _fixed_and_values(disc, trial, h)
         jump = np.where(fixed, values - u, 0.0)
         if np.any(jump != 0.0):
@@ -765,8 +873,9 @@ def _solve_step(
                 if np.all(np.isfinite(dfree)):
                     u = u + dfree
             u = u + jump
-        u, f, K, it = _newton(disc, material, u, fixed, settings, fscale, prox)
-        iters += it
+        extra = fric.terms(disc, jaw_active) if fric is not None else None
+        u, f, K, it = _newton(disc, material, u, fixed, settings, fscale, prox, extra)
+        lag, iters = (lag + it, iters) if lagged else (lag, iters + it)
         K_old = K
         y = disc.X[:, 1] + u[1::2]
         fy = f[1::2]
@@ -775,10 +884,19 @@ def _solve_step(
         new_jaw = np.where(jaw_active, fy[on] <= 0.0, y[on] > h + tol_pen)
         inn = disc.inner_nodes
         new_floor = np.where(floor_active, fy[inn] >= 0.0, y[inn] < -tol_pen)
-        if np.array_equal(new_jaw, jaw_active) and np.array_equal(new_floor, floor_active):
-            return _State(u, jaw_active, floor_active, anchor_x, state.stick, f, K), iters
+        settled = fric is None or fric.settled(disc, f, jaw_active)
+        same = np.array_equal(new_jaw, jaw_active) and np.array_equal(new_floor, floor_active)
+        lagged = same and not settled
+        if same and settled:
+            done = _State(u, jaw_active, floor_active, anchor_x, state.stick, f, K, state.mu)
+            if fric is not None:  # the anchors follow the slide
+                done.anchor_x = fric.step_end_anchor(disc, jaw_active, u)
+                done.lag_newton = lag
+            return done, iters
         added = new_jaw & ~jaw_active
         anchor_x[added] = disc.X[on[added], 0] + u[2 * on[added]]  # stick where it touched
+        if fric is not None:
+            fric.anchor[added] = anchor_x[added]
         jaw_active, floor_active = new_jaw, new_floor
     raise _NewtonFailure("active set did not settle")
 
@@ -927,7 +1045,8 @@ def _contact_measures(disc, state: _State):
     fn = disc.inner_nodes[state.floor_active]
     inner_w = float(x[fn].max() - x[fn].min()) if fn.size else 0.0
     normal = float(np.abs(f[2 * jn + 1]).sum()) if jn.size else 0.0
-    tang = float(np.abs(f[2 * jn[disc.X[jn, 0] > 0]]).sum()) if state.stick and jn.size else 0.0
+    tangential = state.stick or np.isfinite(state.mu)
+    tang = float(np.abs(f[2 * jn[disc.X[jn, 0] > 0]]).sum()) if tangential and jn.size else 0.0
     share = tang / normal if normal > 0 else 0.0
     return force_q, width_q, peak, inner_w, share
 
@@ -958,6 +1077,8 @@ def run_case(spec: CaseSpec, progress=None) -> CaseResult:
     scale_N = 2.0 * spec.jaw_length_mm  # quarter N/mm -> one jaw N
     h_end = 0.5 * spec.closed_gap_mm
     state = _initial_state(disc, material, spec.contact == "stick")
+    if spec.contact == "coulomb":
+        state.mu = float(spec.friction)
     rows = [dict(zip(COLUMNS_2D, (2 * R, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0, 0.0)))]
     h = R
     dh = s.dh_initial_mm
@@ -980,7 +1101,7 @@ def run_case(spec: CaseSpec, progress=None) -> CaseResult:
             fail_log.append({"gap_mm": 2 * h_new, "dh_mm": dh, "reason": str(exc)})
             dh *= 0.25
             continue
-        total_newton += iters
+        total_newton += iters + new_state.lag_newton
         row = _step_row(disc, new_state, h_new, R, scale_N, iters)
         e_new = energy(disc, material, new_state.u)
         if s.maxwell_crease and t < h_new < 2.0 * t and row["force_N"] < force_prev * (1 - 1e-4):
@@ -1127,3 +1248,8 @@ def _validate_spec(spec: CaseSpec) -> None:
             raise ValueError(f"invalid {name}={value!r} (diameter_mm={spec.diameter_mm})")
     if spec.contact not in CONTACTS_2D:
         raise ValueError(f"invalid contact={spec.contact!r}; valid: {', '.join(CONTACTS_2D)}")
+    mu = spec.friction
+    if spec.contact == "coulomb" and not (np.isfinite(mu) and mu > 0):
+        raise ValueError(f"invalid friction={mu!r}: contact='coulomb' needs a coefficient > 0")
+    if spec.contact != "coulomb" and mu != 0:
+        raise ValueError(f"invalid friction={mu!r}: only used with contact='coulomb'")

@@ -88,7 +88,8 @@ class CaseSpec3D:
         ``"stick"`` (default, Guachi et al.'s no sliding) or ``"frictionless"`` (slower: the
         rounded jaw edge needs more active-set passes).
     friction : float
-        Coulomb coefficient (unused: no ``"coulomb"`` contact yet).
+        Coulomb coefficient (unused: Coulomb contact is 2D only,
+        :class:`grasprom.fe.model2d.CaseSpec`).
     jaw_edge_radius_mm : float
         Radius (mm) rounding off the jaw's edges at ``|z| = jaw_length/2``.
     plane_strain : bool

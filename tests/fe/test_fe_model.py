@@ -261,3 +261,72 @@ def test_contact_law_is_validated():
 def test_both_contact_laws_complete(stick_vs_frictionless):
     _, res = stick_vs_frictionless
     assert res["stick"].status == res["frictionless"].status == "complete"
+
+
+@pytest.fixture(scope="module")
+def coulomb_runs():
+    """mr, t = 1.4 mm, coarse 2 x 32 mesh, to gap 8 mm: frictionless, stick and Coulomb with a
+    vanishing, a moderate and a large coefficient."""
+    gaps = (20.0, 10.0, 8.0)
+    mesh = MeshSpec(n_layers=2, n_circ=32)
+    out = {}
+    for contact, mu in (
+        ("frictionless", 0.0),
+        ("stick", 0.0),
+        ("coulomb", 1e-6),
+        ("coulomb", 0.2),
+        ("coulomb", 5.0),
+    ):
+        spec = CaseSpec(
+            "mr",
+            1.4,
+            contact=contact,
+            friction=mu,
+            closed_gap_mm=8.0,
+            mesh=mesh,
+            solver=SolverSettings(land_on_gaps_mm=gaps),
+        )
+        out[(contact, mu)] = run_case(spec)
+    return gaps[1:], out
+
+
+def test_coulomb_spans_frictionless_to_stick(coulomb_runs):
+    """Coulomb friction between its limits: mu -> 0 is the frictionless solution (1e-4), a
+    coefficient above the stick solution's largest tangential share (2.0 near first touch)
+    sticks (within 1 %: the stick regularisation FRICTION_EPS_MM = 1 um lets the first
+    contacts creep while their normal force is still tiny), and mu = 0.2 lies between the two
+    at every gap."""
+    gaps, res = coulomb_runs
+    f = {k: _force_at(r.table, gaps) for k, r in res.items()}
+    assert all(r.status == "complete" for r in res.values())
+    np.testing.assert_allclose(f[("coulomb", 1e-6)], f[("frictionless", 0.0)], rtol=1e-4)
+    np.testing.assert_allclose(f[("coulomb", 5.0)], f[("stick", 0.0)], rtol=0.01)
+    lo, hi = f[("frictionless", 0.0)], f[("stick", 0.0)]
+    assert np.all(lo * (1 - 1e-6) <= f[("coulomb", 0.2)]), (lo, f[("coulomb", 0.2)])
+    assert np.all(f[("coulomb", 0.2)] <= hi * (1 + 1e-6)), (hi, f[("coulomb", 0.2)])
+    assert np.all(hi > lo * 1.002)  # the limits differ, so "between" says something
+
+
+def test_coulomb_friction_never_exceeds_mu_times_the_normal_force(coulomb_runs):
+    """The jaw's tangential reaction is at most mu times its normal reaction (the Coulomb
+    cone, summed over the contact), and with mu = 0.2 the contact slides: the share comes
+    close to mu where the contact widens; stick needs up to 10x that share."""
+    _, res = coulomb_runs
+    share = res[("coulomb", 0.2)].table["tangential_share"]
+    assert share.max() <= 0.2 * (1 + 1e-9)
+    assert share.max() > 0.15
+    assert res[("stick", 0.0)].table["tangential_share"].max() > 1.0
+    assert res[("coulomb", 0.2)].info["mesh"]["n_circ"] == 32
+
+
+@pytest.mark.parametrize(
+    "kw,match",
+    [
+        ({"contact": "coulomb"}, "friction"),
+        ({"contact": "coulomb", "friction": float("nan")}, "friction"),
+        ({"contact": "stick", "friction": 0.3}, "only used with"),
+    ],
+)
+def test_coulomb_needs_a_coefficient_and_only_coulomb_takes_one(kw, match):
+    with pytest.raises(ValueError, match=match):
+        run_case(CaseSpec("mr", 1.4, **kw))

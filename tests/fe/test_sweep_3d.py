@@ -62,13 +62,26 @@ def test_2d_sweep_with_stick_contact_records_it(tmp_path):
     assert pd.read_csv(out / "mr_t1.40.csv")["tangential_share"].max() > 0
 
 
+def test_2d_sweep_with_coulomb_contact_records_the_coefficient(tmp_path):
+    out = tmp_path / "coulomb2d"
+    extra = ["--n-layers", "2", "--n-circ", "32", "--closed-gap", "20"]
+    assert _sweep(out, "--contact", "coulomb", "--friction", "0.2", *extra) == 0
+    meta = json.loads((out / "mr_t1.40.json").read_text())
+    assert meta["model"] == "2d" and meta["contact"] == "coulomb" and meta["friction"] == 0.2
+    share = pd.read_csv(out / "mr_t1.40.csv")["tangential_share"]
+    assert 0 < share.max() <= 0.2 * (1 + 1e-9)
+
+
 @pytest.mark.parametrize(
     "extra, needle",
     [
         (["--ends", "seed"], "--ends: only with --model 3d"),
         (["--tube-length", "100"], "--tube-length: only with --model 3d"),
-        (["--contact", "coulomb"], "not implemented"),
-        (["--model", "3d", "--contact", "coulomb"], "not implemented"),
+        (["--contact", "coulomb"], "needs --friction"),
+        (["--contact", "coulomb", "--friction", "0"], "--friction: must be a coefficient"),
+        (["--contact", "coulomb", "--friction", "nan"], "--friction: must be a coefficient"),
+        (["--contact", "stick", "--friction", "0.3"], "only used with --contact coulomb"),
+        (["--model", "3d", "--contact", "coulomb", "--friction", "0.3"], "2D only"),
         (["--model", "3d", "--friction", "0.3"], "--friction"),
         (["--model", "3d", "--tube-length", "-5"], "--tube-length"),
         (["--model", "3d", "--n-circ", "4"], "--n-circ"),
