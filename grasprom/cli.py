@@ -945,11 +945,16 @@ def _add_build_parser(sub) -> None:
 def _build_material_error(args: argparse.Namespace, fe_dir: Path) -> str | None:
     """``--material`` not in the sweep ``fe_dir``: what the sweep covers and the command that
     adds the material (None: covered, or a sweep without readable cases, which the surrogate
-    stage reports)."""
-    from grasprom.fe import MATERIAL_NAMES
-    from grasprom.fe.datafiles import known_stems, parse_stem
+    stage reports).
 
-    cases = [ps for ps in map(parse_stem, known_stems(fe_dir)) if ps is not None]
+    Coverage is that of the case sidecars present (what the surrogate reads), not the cases
+    ``sweep.json`` lists: an interrupted or cut-down sweep may list cases it does not hold.
+    """
+    from grasprom.fe import MATERIAL_NAMES
+    from grasprom.fe.datafiles import case_json_paths, parse_stem
+
+    stems = (p.stem for p in case_json_paths(fe_dir))
+    cases = [ps for ps in map(parse_stem, stems) if ps is not None]
     found = [m for m in MATERIAL_NAMES if any(c[0] == m for c in cases)]
     if not found or args.material in found:
         return None

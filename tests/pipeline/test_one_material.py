@@ -160,6 +160,25 @@ def test_material_not_in_the_sweep_is_a_bad_input(tmp_path):
     assert not out.exists()
 
 
+def test_material_listed_in_sweep_json_but_without_cases_is_a_bad_input(tmp_path):
+    """An interrupted sweep: its sweep.json lists mr, nh and le but only the mr case files
+    exist. ``--material le`` was taken as covered and failed in stage surrogate (exit 1, no
+    sweep command); it is a bad input before any stage, as for a sweep without le."""
+    fe = copy_sweep("fe_data/default", tmp_path / "fe_interrupted", ["mr"])
+    shutil.copy(ROOT / "fe_data" / "default" / "sweep.json", fe / "sweep.json")
+    listed = json.loads((fe / "sweep.json").read_text())["cases"]
+    assert {c["material"] for c in listed} == {"mr", "nh", "le"}
+    assert {p.name.split("_t")[0] for p in fe.glob("*_t*")} == {"mr"}
+    out = tmp_path / "out"
+    res = _build(out, "--fe", str(fe), "--material", "le", "--fast")
+    assert res.returncode == 2, res.stderr
+    err = res.stderr
+    assert f"--material le: the FE sweep {fe} covers only mr (thickness 0.8-2 mm)" in err
+    assert f"grasprom sweep --material le --thickness 0.8,1,1.2,1.4,1.6,1.8,2 --out {fe}" in err
+    assert "stage" not in err and "Traceback" not in err
+    assert not out.exists()
+
+
 def test_tune_on_a_sweep_without_the_default_material(tmp_path):
     """The tuned controller's operating point is a covered one: the default mr becomes nh on
     a sweep of nh only (controller.json exports as it is); a material not in it is refused."""
