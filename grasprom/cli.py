@@ -1253,6 +1253,32 @@ def cli_help_pages(width: int = 100) -> list[tuple[str, str]]:
             os.environ["COLUMNS"] = old
 
 
+def _chosen_parser(
+    parser: argparse.ArgumentParser, args: argparse.Namespace
+) -> argparse.ArgumentParser:
+    """The innermost (sub)parser ``args`` was parsed with, e.g. that of ``export fmu``.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The top-level parser (:func:`_build_parser`).
+    args : argparse.Namespace
+        What ``parser`` parsed (each subparsers action stores its choice in its ``dest``).
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The parser of the chosen (nested) subcommand, ``parser`` itself if none was chosen.
+    """
+    while True:
+        subs = (a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+        action = next(subs, None)
+        chosen = None if action is None else action.choices.get(getattr(args, action.dest, None))
+        if chosen is None:
+            return parser
+        parser = chosen
+
+
 def main(argv: Sequence[str] | None = None, *, runner=None) -> int:
     """Entry point of the ``grasprom`` command.
 
@@ -1271,7 +1297,10 @@ def main(argv: Sequence[str] | None = None, *, runner=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] in ("diagnose", "synth"):
         return _delegated(argv[0])(argv[1:])
-    args = _build_parser().parse_args(argv)
+    parser = _build_parser()
+    args, extra = parser.parse_known_args(argv)
+    if extra:  # the chosen subcommand's usage, not the top-level one (exits 2)
+        _chosen_parser(parser, args).error(f"unrecognized arguments: {' '.join(extra)}")
     if args.command == "build":
         return _cmd_build(args, argv)
     if args.command == "sweep":

@@ -2,6 +2,8 @@
 
 import json
 
+import pytest
+
 from grasprom.cli import main
 
 
@@ -53,3 +55,45 @@ def test_every_option_with_a_default_states_it_in_its_help():
     walk(_diagnose_parser(), "grasprom diagnose")
     walk(_synth_parser(), "grasprom synth")
     assert not missing, missing
+
+
+# (subcommand, its required arguments; "{o}" an output path that must not be created)
+UNKNOWN_OPTION_ROWS = [
+    ("tune", []),
+    ("build", ["--out", "{o}", "--fast"]),
+    ("report", []),
+    ("sweep", ["--thickness", "1.4", "--material", "mr", "--out", "{o}"]),
+    ("simulate", ["--trajectory", "t.csv", "--out", "{o}"]),
+    ("identify", ["t.csv", "--out", "{o}"]),
+    ("surrogate build", ["--fe", "fe_data/default", "--out", "{o}"]),
+    ("surrogate check", ["s.json", "--fe", "fe_data/holdout"]),
+    ("surrogate plot", ["s.json", "--out", "{o}"]),
+    ("export fmu", ["--out", "{o}"]),
+    ("export arduino", ["--out", "{o}"]),
+]
+
+
+@pytest.mark.parametrize("command, required", UNKNOWN_OPTION_ROWS,
+                         ids=[r[0] for r in UNKNOWN_OPTION_ROWS])  # fmt: skip
+def test_unknown_option_shows_the_subcommands_usage(command, required, tmp_path, capsys):
+    """An unknown option on a subcommand printed the top-level usage ("usage: grasprom [-h]
+    [--version] {build,...}"); it is the (nested) subcommand's usage and error, exit 2."""
+    out = tmp_path / "out"
+    argv = [*command.split(), *(a.replace("{o}", str(out)) for a in required), "--bogus"]
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    err = capsys.readouterr().err
+    assert exc.value.code == 2, err
+    assert err.startswith(f"usage: grasprom {command} "), err
+    assert f"grasprom {command}: error: unrecognized arguments: --bogus" in err, err
+    assert "{build,sweep" not in err, err
+    assert not out.exists()
+
+
+def test_stray_positional_is_named_with_the_subcommands_usage(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["report", "fe_data/default", "extra", "--linear"])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2
+    assert err.startswith("usage: grasprom report ")
+    assert "grasprom report: error: unrecognized arguments: extra" in err
