@@ -35,8 +35,8 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 import pandas as pd
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
+from grasprom.fe.linsolve import solve_symmetric
 from grasprom.fe.materials import Material, cofactor, get_material, pointwise_tangent
 
 #: columns every case CSV must hold (a contract other tools rely on)
@@ -688,7 +688,7 @@ def _newton(
         for _ in range(6):
             Ks = Kc if shift == 0.0 else Kc + shift * sp.identity(disc.ndof, format="csr")
             try:
-                du = spla.spsolve(Ks.tocsc(), -r)
+                du = solve_symmetric(Ks, -r)
             except RuntimeError:
                 du = None
             if du is not None and np.all(np.isfinite(du)) and r @ du < 0:
@@ -868,7 +868,10 @@ def _solve_step(
                 rhs = -(K_old @ jump)
                 rhs[fixed] = 0.0
                 Kc = _constrained_system(disc, K_old, fixed)
-                dfree = spla.spsolve(Kc.tocsc(), rhs)
+                try:
+                    dfree = solve_symmetric(Kc, rhs)
+                except RuntimeError:  # singular tangent: no predictor
+                    dfree = np.full_like(rhs, np.nan)
                 dfree[fixed] = 0.0
                 if np.all(np.isfinite(dfree)):
                     u = u + dfree
