@@ -1,4 +1,4 @@
-"""Figures of a 3D sweep (issue 18): per case the solver effort and the seed-003 quantities,
+"""Figures of a 3D sweep: per case the solver effort and the quantities of Guachi et al. (2020),
 side by side with the 2D sweep. Prints, asserts nothing; reads the case files, runs no FE.
 
     python benchmarks/fe3d_figures.py [SWEEP_3D] [SWEEP_2D]   # default fe_data/default fe_data/2d

@@ -42,7 +42,7 @@ def main(argv: list[str] | None = None) -> int:
     fi50 = kin.handle_force_N(50.0, th, p)
     hdr = (
         f"{'theta_deg':>9} {'gap_mm':>8} {'dgap/dth':>9} {'dx_mm':>7} {'beta_deg':>8} "
-        f"{'Fg/Fi_%':>8} {'seed_%':>7} {'dev_%':>7} {'Fi_spr_N':>8} {'Fi@50N':>7}"
+        f"{'Fg/Fi_%':>8} {'paper_%':>7} {'dev_%':>7} {'Fi_spr_N':>8} {'Fi@50N':>7}"
     )
     print(hdr)
     for row in zip(th, gap, dg, dx, beta, r, rs, fsp, fi50):

@@ -4,10 +4,11 @@ Builds the surrogate from ``fe_data/default``, runs :func:`grasprom.control.tuni
 Abbott-Okamura bounds, Z-width, python-control poles and margins with the hand at every
 operating point, the transparency table, simulation check), prints the report and writes
 ``controller.json``, ``tuning.json``, ``tuning.txt`` and the plots (``transparency.png``
-among them) into ``--out``.  Takes about 10 s.
+among them) into ``--out``.  Takes about 10 s.  The defaults are ``grasprom tune``'s (the
+stiffness-clipped rendering), so both print the same design.
 
     python examples/tune_controller.py --out /tmp/tune
-    python examples/tune_controller.py --out /tmp/tune --rendering clipped --device dev.json
+    python examples/tune_controller.py --out /tmp/tune --rendering coupling --device dev.json
 """
 
 from __future__ import annotations
@@ -41,7 +42,10 @@ def main(argv: list[str] | None = None) -> int:
         help="physical damping b at the handle pivot, N m s/rad",
     )
     ap.add_argument(
-        "--rendering", choices=("coupling", "clipped"), default="coupling", help="tissue rendering"
+        "--rendering",
+        choices=("coupling", "clipped"),
+        default="clipped",
+        help="tissue rendering (default: clipped, as grasprom tune)",
     )
     ap.add_argument("--device", type=Path, default=None, help="device JSON (replaces --damping)")
     args = ap.parse_args(argv)

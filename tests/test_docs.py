@@ -91,3 +91,76 @@ def test_every_docs_page_is_in_the_navigation():
     assert pages <= set(flat), sorted(pages - set(flat))
     generated = {"cli.md", "examples.md", "api/index.md"}
     assert generated <= set(flat) and not generated & pages  # generated, never written by hand
+
+
+def _inline_commands() -> list[tuple[str, str]]:
+    """``(page, span)`` of every inline code span starting with ``grasprom `` in README and the
+    hand-written docs pages (fenced blocks excluded: tests/test_doc_commands.py runs those)."""
+    out = []
+    for page in [README, *sorted((ROOT / "docs").glob("*.md"))]:
+        text = re.sub(r"```.*?```", "", page.read_text(), flags=re.S)
+        out += [(page.name, m.group(1)) for m in re.finditer(r"`(grasprom [^`]+)`", text)]
+    return out
+
+
+def test_inline_commands_name_real_options_and_paste():
+    """Inline ``grasprom ...`` spans are names of commands and options, or commands that paste:
+    no usage notation (``[...]``, a literal ``...``) and every ``--option`` they show exists in
+    the live parser of the command they name (``a|b`` alternatives each checked)."""
+    from grasprom.cli import cli_help_pages
+
+    helps = dict(cli_help_pages())
+    spans = _inline_commands()
+    assert len(spans) > 40  # the docs do name commands inline
+    bad = []
+    for page, span in spans:
+        words = span.split()
+        if "[" in span or "..." in span:
+            bad.append((page, span, "usage notation"))
+            continue
+        for variant in {w for w in words[1:3] if "|" in w} or {""}:
+            names = [w for w in words if not w.startswith("-")]
+            for alt in variant.split("|") if variant else [""]:
+                cmd_words = [alt if w == variant else w for w in names]
+                cmd = max((c for c in helps if " ".join(cmd_words).startswith(c)), key=len)
+                for w in words:
+                    opt = w.split("=")[0]
+                    if opt.startswith("--") and not re.search(rf"{re.escape(opt)}\b", helps[cmd]):
+                        bad.append((page, span, f"{cmd} has no {opt}"))
+    assert not bad, bad
+
+
+def test_inline_python_commands_name_real_files_and_options():
+    """Inline ``python ...`` spans (the "reproduce" commands of README and the docs): the
+    script or test file exists, no usage notation, every ``--option`` is one the script
+    defines (checked in its source: these are long runs; the benchmarks' own runs are in
+    ``benchmarks/``), and a ``tests/...::name`` test exists."""
+    bad = []
+    n = 0
+    for page in [README, *sorted((ROOT / "docs").glob("*.md"))]:
+        text = re.sub(r"```.*?```", "", page.read_text(), flags=re.S)
+        for m in re.finditer(r"`python ([^`]+)`", text):
+            n += 1
+            span = m.group(1)
+            if "[" in span or "..." in span:
+                bad.append((page.name, span, "usage notation"))
+                continue
+            words = span.split()
+            pytest_run = words[:2] == ["-m", "pytest"]
+            files = [w for w in words[2:] if "/" in w] if pytest_run else words[:1]
+            if not files:
+                continue  # `python -m pytest -q`: the whole suite
+            path, _, test = files[0].partition("::")
+            src = ROOT / path
+            if not src.exists():
+                bad.append((page.name, span, f"no file {path}"))
+                continue
+            if test and f"def {test}(" not in src.read_text():
+                bad.append((page.name, span, f"no test {test}"))
+            if not pytest_run:
+                code = src.read_text()
+                for w in words[1:]:
+                    if w.startswith("--") and f'"{w.split("=")[0]}"' not in code:
+                        bad.append((page.name, span, f"{path} has no {w}"))
+    assert n > 20
+    assert not bad, bad

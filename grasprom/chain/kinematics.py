@@ -826,7 +826,7 @@ def _seed_note(p: ChainParams) -> str:
     return (
         f"eq (2) moves the rod by L1 = {o['crank_mm']:g} mm per rad; the linkage moves it "
         f"{o['rod_mm_per_rad']:.2f}-{k['rod_mm_per_rad']:.2f} mm/rad\n"
-        f"(crank-link angle {o['mu_deg']:.1f}-{k['mu_deg']:.1f} deg): seed "
+        f"(crank-link angle {o['mu_deg']:.1f}-{k['mu_deg']:.1f} deg): printed formula "
         f"{o['derived_over_seed']:.1f}x (open) to {k['derived_over_seed']:.1f}x (closed) below"
     )
 

@@ -222,7 +222,7 @@ Material = MooneyRivlin | CompressibleNeoHookean
 
 
 def get_material(name: str, **overrides) -> Material:
-    """Material by short name (``mr``, ``nh``, ``le``) with seed-003 defaults.
+    """Material by short name (``mr``, ``nh``, ``le``) with the defaults of Guachi et al. (2020).
 
     Parameters
     ----------

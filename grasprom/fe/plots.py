@@ -12,6 +12,23 @@ from pathlib import Path
 from grasprom.fe import datafiles as df
 from grasprom.fe.materials import material_label
 
+GAP_TICKS_MM = (1.0, 1.5, 2.0, 3.0, 5.0, 10.0, 20.0, 30.0)
+"""Labelled ticks of a logarithmic jaw-gap axis (mm)."""
+
+
+def log_gap_axis(ax) -> None:
+    """Make ``ax``'s x axis a logarithmic jaw-gap axis labelled at :data:`GAP_TICKS_MM` (mm).
+
+    A bare log axis over 1.5-30 mm carries a single labelled decade tick; these ticks read as
+    plain millimetres and are shared by the FE, surrogate and residual figures.
+    """
+    from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter
+
+    ax.set_xscale("log")
+    ax.xaxis.set_major_locator(FixedLocator(GAP_TICKS_MM))
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
+    ax.xaxis.set_minor_formatter(NullFormatter())
+
 
 def plot_sweep(
     directory: str | os.PathLike[str],
@@ -43,7 +60,6 @@ def plot_sweep(
     """
     import matplotlib
     from matplotlib.figure import Figure
-    from matplotlib.ticker import NullFormatter
 
     data = df.load_sweep(directory)
     mats = sorted(data["material"].unique()) if len(data) else []
@@ -73,8 +89,7 @@ def plot_sweep(
         for ax in (top, zoom):
             ax.set_xlabel("jaw gap (mm)")
             ax.grid(True, alpha=0.3)
-        top.set_xscale("log")  # as the surrogate figure: gap increasing to the right
-        top.xaxis.set_minor_formatter(NullFormatter())
+        log_gap_axis(top)  # as the surrogate figure: gap increasing to the right
     axes[0][0].set_ylabel("jaw force (N)")
     axes[1][0].set_ylabel("jaw force (N), linear")
     if mats:

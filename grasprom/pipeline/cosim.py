@@ -267,10 +267,10 @@ GRASP_PROFILE_S = (1.0, 2.0, 0.5, 1.0)
 """Durations (ramp, hold, release, rest) of the co-simulated grasp, s."""
 
 FAST_REST_S = 0.2
-"""Rest after the release with ``--fast``, s: the only phase ``--fast`` shortens (issue 16
-item 8: a shorter ramp and hold had changed the max jaw force from 0.98 to 1.04 N and the min
-handle angle from 3.69 to 3.54 deg; the handle is back at its open stop 0.1 s before the end
-of the release, so the rest changes none of the reported figures)."""
+"""Rest after the release with ``--fast``, s: the only phase ``--fast`` shortens (a shorter
+ramp and hold had changed the max jaw force from 0.98 to 1.04 N and the min handle angle from
+3.69 to 3.54 deg; the handle is back at its open stop 0.1 s before the end of the release, so
+the rest changes none of the reported figures)."""
 
 
 def grasp_profile(fast: bool) -> tuple[float, float, float, float]:
@@ -284,7 +284,7 @@ def grasp_profile(fast: bool) -> tuple[float, float, float, float]:
 
 
 OVERSHOOT_TARGET = 0.15
-"""Largest overshoot of the co-simulated grasp the report calls settled (issue 13), 1."""
+"""Largest overshoot of the co-simulated grasp the report calls settled, 1."""
 
 
 def grasp_settling(cs: CosimResult, fast: bool) -> dict[str, Any]:

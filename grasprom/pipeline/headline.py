@@ -1,4 +1,4 @@
-"""The headline table of a build (issue 16 item 6): what was built and every figure that has a
+"""The headline table of a build: what was built and every figure that has a
 stated target, with the target, where it is stated and PASS / FAIL computed from the numbers.
 
 :func:`headline_rows` gives the rows (JSON-ready; ``build.json`` keeps them under
@@ -6,7 +6,7 @@ stated target, with the target, where it is stated and PASS / FAIL computed from
 inventory of the artefacts.  The targets are the project's own constants, never numbers
 chosen here:
 
-* surrogate held-out error: :data:`grasprom.surrogate.CHECK_TOLERANCE` (issue 3: 3 % of the
+* surrogate held-out error: :data:`grasprom.surrogate.CHECK_TOLERANCE` (3 % of the
   20 N haptic scale, 0.02 mm);
 * passivity margin ``b / b_required``: the tuning's safety factor (``tune(safety=1.25)``;
   passive means > 1) at the controller rate;
@@ -15,8 +15,7 @@ chosen here:
   :mod:`grasprom.export.arduino.budget`;
 * FMU vs Python reference torque over the co-simulation: :data:`PARITY_TOLERANCE_NM` (the C
   core is bit-identical to the Python reference);
-* co-simulated handle-force overshoot: :data:`grasprom.pipeline.cosim.OVERSHOOT_TARGET`
-  (issue 13).
+* co-simulated handle-force overshoot: :data:`grasprom.pipeline.cosim.OVERSHOOT_TARGET`.
 """
 
 from __future__ import annotations
@@ -107,7 +106,7 @@ def surrogate_rows(s: Surrogate) -> list[dict[str, Any]]:
 
     fig = s.errors.get("holdout", {}).get("schemes", {}).get(s.scheme)
     h = fig["haptic"]["all"] if fig else {}
-    src = "grasprom.surrogate.CHECK_TOLERANCE (issue 3)"
+    src = "grasprom.surrogate.CHECK_TOLERANCE"
     scale = f"{s.params.force_ref_N:g} N"
     return [
         _row(f"surrogate: held-out haptic force error, max ({s.scheme}, all materials)",
@@ -163,7 +162,7 @@ def cosim_rows(cs: CosimResult) -> list[dict[str, Any]]:
     rows.append(_row("co-simulation: rendered handle-force overshoot over the hold",
                      100 * st["overshoot"] if st else None, "%", "<=",
                      100 * OVERSHOOT_TARGET,
-                     "grasprom.pipeline.cosim.OVERSHOOT_TARGET (issue 13)"))  # fmt: skip
+                     "grasprom.pipeline.cosim.OVERSHOOT_TARGET"))  # fmt: skip
     return rows
 
 

@@ -220,7 +220,7 @@ def seed_explanation(chain: Any) -> str:
     Returns
     -------
     str
-        One paragraph (plain text): the ratio derived / seed at the end stops, the rod
+        One paragraph (plain text): the ratio derived / printed formula at the end stops, the rod
         travel per radian (mm/rad) against the crank ``L1`` (mm), the crank-link angle (deg).
     """
     from grasprom.chain.kinematics import seed_comparison
@@ -237,7 +237,7 @@ def seed_explanation(chain: Any) -> str:
         f"layout the crank and the link stay nearly in line (angle {o['mu_deg']:.1f} deg open, "
         f"{k['mu_deg']:.1f} deg closed), so the rod moves only {o['rod_mm_per_rad']:.2f}-"
         f"{k['rod_mm_per_rad']:.2f} mm per radian and virtual work gives the rod force "
-        "Fi L3 / (rod travel per radian): derived / seed = 1 / (sin(crank-link angle) "
+        "Fi L3 / (rod travel per radian): derived / printed = 1 / (sin(crank-link angle) "
         "cos(phi)). Not a bug: the printed formula does not conserve energy (a handle force "
         "rendered with it would create or destroy energy over a grasp), so the controller uses "
         "the derived chain; the spring terms of both agree."
@@ -634,10 +634,14 @@ def headline(res: BuildResult) -> list[str]:
                      f"{', '.join(res.augmentation['rendered']) or 'none'}")  # fmt: skip
     if res.arduino is not None:
         a = res.arduino
-        lines.append(f"arduino: flash {_fmt(a.flash_B, 'd')} B, RAM {_fmt(a.ram_B, 'd')} B, "
-                     f"cycles {_fmt(a.cycles_max, 'd')}, handle-force error "
-                     f"{_fmt(a.error_handle_pct_rendered, '.3f')} % of the rendered "
-                     "range")  # fmt: skip
+        if a.flash_B is None and a.cycles_max is None and a.error_handle_pct_rendered is None:
+            why = "; ".join(a.notes) or "no toolchain run"
+            lines.append(f"arduino: package written, budget not measured ({why})")
+        else:
+            lines.append(f"arduino: flash {_fmt(a.flash_B, 'd')} B, RAM {_fmt(a.ram_B, 'd')} B, "
+                         f"cycles {_fmt(a.cycles_max, 'd')}, handle-force error "
+                         f"{_fmt(a.error_handle_pct_rendered, '.3f')} % of the rendered "
+                         "range")  # fmt: skip
     if res.cosim is not None:
         lines.append(
             f"co-simulation: max jaw force {res.cosim.col('force_jaw_N').max():.2f} N,"

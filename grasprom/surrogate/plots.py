@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from grasprom.fe.materials import material_label
+from grasprom.fe.plots import log_gap_axis
 from grasprom.surrogate.fedata import FECase, read_fe_cases
 from grasprom.surrogate.table import Surrogate
 from grasprom.surrogate.validation import fe_point_stiffness
@@ -123,13 +124,10 @@ def _label_column(column: Sequence[Any], s: Surrogate, m: str) -> None:
     """Scales, limits, titles, labels, legend and grid of the three panels of material ``m``."""
     ax = column[0]
     ax.set_yscale("log")
-    ax.set_xscale("log")
-    from matplotlib.ticker import NullFormatter
-
+    log_gap_axis(ax)
     ax.set_title(f"{material_label(m)}, {s.scheme} scheme", fontsize=9)
     ax.text(0.02, 0.03, "lines: surrogate (dashed: extrapolated past the FE data)\no: FE",
             transform=ax.transAxes, fontsize=6, va="bottom")  # fmt: skip
-    ax.xaxis.set_minor_formatter(NullFormatter())
     ax.set_xlabel("jaw gap (mm)")
     ax.set_ylabel("force (N)")
     ax.legend(fontsize=6, ncol=2, title="thickness", title_fontsize=6)
@@ -141,9 +139,8 @@ def _label_column(column: Sequence[Any], s: Surrogate, m: str) -> None:
     ax.set_ylabel("force (N)")
     ax = column[2]
     ax.set_yscale("log")
-    ax.set_xscale("log")
+    log_gap_axis(ax)
     ax.set_title("stiffness -dF/dgap (FE: larger adjacent secant)")
-    ax.xaxis.set_minor_formatter(NullFormatter())
     ax.set_xlabel("jaw gap (mm)")
     ax.set_ylabel("stiffness (N/mm)")
     for a in column:
@@ -253,14 +250,12 @@ def residual_figure(s: Surrogate, rows: Sequence[dict[str, Any]], title: str) ->
 
 def _label_residual_column(top: Any, bottom: Any, s: Surrogate, m: str, tol: float) -> None:
     """Scales, target band, titles and labels of the two residual panels of material ``m``."""
-    top.set_xscale("log")
     top.set_yscale("symlog", linthresh=0.01)
     top.axhline(0.0, color="k", lw=0.6)
     top.set_title(f"{material_label(m)}: surrogate - FE", fontsize=9)
     top.set_xlabel("jaw gap (mm)")
     top.set_ylabel("force residual (N)")
     top.legend(fontsize=6, title="thickness", title_fontsize=6)
-    bottom.set_xscale("log")
     bottom.axhspan(-tol, tol, color="C2", alpha=0.15, label=f"target +-{tol:g} %")
     bottom.axhline(0.0, color="k", lw=0.6)
     bottom.set_title(f"haptic range, % of {s.params.force_ref_N:g} N (x: steep, judged by gap)",
@@ -268,10 +263,6 @@ def _label_residual_column(top: Any, bottom: Any, s: Surrogate, m: str, tol: flo
     bottom.set_xlabel("jaw gap (mm)")
     bottom.set_ylabel("force residual (% of the haptic scale)")
     bottom.legend(fontsize=6)
-    from matplotlib.ticker import FixedLocator, NullFormatter, ScalarFormatter
-
     for a in (top, bottom):
-        a.xaxis.set_major_locator(FixedLocator([1, 2, 3, 5, 10, 20, 30]))
-        a.xaxis.set_major_formatter(ScalarFormatter())
-        a.xaxis.set_minor_formatter(NullFormatter())
+        log_gap_axis(a)
         a.grid(True, alpha=0.3, which="both")

@@ -305,17 +305,23 @@ class ArduinoExport:
     def summary(self) -> str:
         """Human-readable budget table."""
 
+        na = "not measured"
+
         def f(v: object, unit: str, lim: object) -> str:
-            return f"{'n/a' if v is None else v}{unit} (budget {lim}{unit})"
+            return f"{na if v is None else f'{v}{unit}'} (budget {lim}{unit})"
 
         cyc = self.cycles_max
-        err = None if self.error_handle_pct_fs is None else round(self.error_handle_pct_fs, 3)
-        jaw = None if self.error_jaw_pct_fs is None else round(self.error_jaw_pct_fs, 3)
         rend = (
-            "n/a"
+            na
             if self.error_handle_pct_rendered is None
             else f"{self.error_handle_pct_rendered:.3f} % of the rendered range "
             f"{self.rendered_max_N:.4g} N"
+        )
+        fs = (
+            f"{na} against the full scales"
+            if self.error_handle_pct_fs is None or self.error_jaw_pct_fs is None
+            else f"{self.error_handle_pct_fs:.3f} % of the motor's full scale; jaw force "
+            f"{self.error_jaw_pct_fs:.3f} % of the jaw-force full scale {self.jaw_fs_N:.4g} N"
         )
         fw = self.firmware
         lines = [
@@ -328,8 +334,7 @@ class ArduinoExport:
             f"  RAM (static + step stack): {f(self.ram_B, ' B', RAM_BUDGET_B)}",
             f"  cycles per step (max): {f(cyc, '', CYCLE_BUDGET)}",
             f"  max handle-force error: {rend} (budget {100 * ERROR_BUDGET:g} %)",
-            f"  max handle-force error: {err} % of the motor's full scale; jaw force {jaw} % of "
-            f"the jaw-force full scale {self.jaw_fs_N:.4g} N",
+            f"  max handle-force error: {fs}",
         ]
         lines += [f"  note: {n}" for n in self.notes]
         return "\n".join(lines)
