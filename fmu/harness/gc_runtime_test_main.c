@@ -8,6 +8,11 @@
  * little endian: torque, force_handle, force_jaw, proxy_gap (IEEE float32 each) and the flags
  * (contact | tissue_warning << 1 | coupling_active << 2 | saturated << 3 | theta_clamped << 4):
  * 17 bytes.  AVR: bytes to GPIOR0, step markers to GPIOR1 (read by gf_simavr_harness).
+ *
+ * RAM: the core's static strings (gc_check_params' messages) already take about 1.2 KB of the
+ * ATmega328P's 2 KB, so the vectors' parameters and cases stay in flash (GC_TABLE, copied with
+ * GC_MEMCPY): in RAM they left the float step too little stack, which then overwrote the state
+ * (wrong or NaN outputs from the second case on).
  */
 #include <stdint.h>
 #include <string.h>
@@ -34,7 +39,7 @@ typedef struct {
     uint16_t len;
 } rt_case_t;
 
-#include "gc_rt_vectors.h" /* RT_PARAMS, RT_Q_RAD, RT_N_CASES, rt_cases[], rt_counts[] */
+#include "gc_rt_vectors.h" /* RT_PARAMS, RT_Q_RAD, RT_N_CASES, rt_cases[], rt_counts[] (GC_TABLE) */
 
 static void put_float(double x) {
     float f = (float)x;
@@ -52,21 +57,24 @@ int main(void) {
     RT_MARK(1); /* calibration: an empty measurement */
     RT_MARK(2);
     for (c = 0; c < RT_N_CASES; ++c) {
-        uint16_t i, start = rt_cases[c].start, len = rt_cases[c].len;
+        rt_case_t cs;
+        uint16_t i;
         double t;
         int clamped, rc;
         const char *msg;
-        params = RT_PARAMS;
-        params.material = rt_cases[c].material;
-        params.thickness = rt_cases[c].thickness;
+        GC_MEMCPY(&cs, &rt_cases[c], sizeof cs);
+        GC_MEMCPY(&params, &RT_PARAMS, sizeof params);
+        params.material = cs.material;
+        params.thickness = cs.thickness;
         rc = gc_check_params(&params, GC_MATERIALS, GC_N_MATERIALS, &t, &clamped, &msg);
         params.thickness = t;
         RT_PUT(rc);
         RT_PUT(clamped);
         gc_init(&state, &params, &GC_CHAIN);
         gc_build_field(&state, &params, &GC_CHAIN, &GC_MATERIALS[params.material]);
-        for (i = 0; i < len; ++i) {
-            double theta = RT_Q_RAD * (double)(int16_t)GC_RD16((const uint16_t *)&rt_counts[start + i]);
+        for (i = 0; i < cs.len; ++i) {
+            double theta =
+                RT_Q_RAD * (double)(int16_t)GC_RD16((const uint16_t *)&rt_counts[cs.start + i]);
             RT_MARK(1);
             gc_step(&state, &params, &GC_CHAIN, &GC_MATERIALS[params.material], theta, &o);
             RT_MARK(2);

@@ -303,6 +303,14 @@ def test_fmu_runtime_core_runs_on_the_avr_as_float_build(surrogate, tables, tmp_
     assert r.cycles.mean() > 10 * ar.CYCLE_BUDGET
 
 
+def test_runtime_avr_refuses_the_clipped_rendering(surrogate, tmp_path):
+    """The AVR build of the run-time core has no field table (GC_FIELD_N = 0): a clear
+    ValueError up front, not the firmware's code -6 after a build and a simavr run."""
+    with pytest.raises(ValueError, match="rendering='coupling'"):
+        ar.run_runtime_avr(surrogate, ControllerParams(rendering="clipped"), [], tmp_path)
+    assert not list(tmp_path.iterdir())
+
+
 def test_export_writes_sketch_that_builds_with_arduino_mk(surrogate, tmp_path):
     p = ControllerParams(material="le", thickness_mm=1.65)
     res = ar.export_arduino(tmp_path / "exp", surrogate=surrogate, params=p, measure=False)

@@ -266,7 +266,21 @@ def run_runtime_avr(
     avr-gcc's ``double`` is 32-bit, so this is the float build of the FMU's core; the
     surrogate curves go to flash (``GC_TABLE`` = PROGMEM).  Outputs are compared with
     :class:`grasprom.control.ImpedanceController` (double) on the same encoder counts.
+
+    Raises
+    ------
+    ValueError
+        If ``params.rendering`` is not ``"coupling"``: the AVR build leaves the clipped
+        rendering's field table out (``GC_FIELD_N = 0``) and ``gc_check_params`` refuses it.
+    RuntimeError
+        If a tool fails, the core refuses a case's parameters, or an output is not finite.
     """
+    if params.rendering != "coupling":
+        raise ValueError(
+            f"run_runtime_avr needs rendering='coupling' (got {params.rendering!r}): the AVR "
+            "build of the run-time core has no field table (GC_FIELD_N = 0), so gc_check_params "
+            "refuses the clipped rendering (code -6)"
+        )
     need_tool("avr-gcc", "gcc-avr avr-libc")
     need_tool("avr-size", "binutils-avr")
     d = Path(directory)
@@ -278,12 +292,21 @@ def run_runtime_avr(
     e_h = e_j = 0.0
     mism = 0
     for c in cases:
-        rc, _clamped = data[pos], data[pos + 1]
+        rc = int(np.frombuffer(data, np.int8, 1, pos)[0])  # gc_check_params' code, signed
         if rc != 0:
-            raise RuntimeError(f"run-time core rejected the parameters of a case (code {rc})")
+            raise RuntimeError(
+                f"run-time core rejected the parameters of case {c.material} "
+                f"{c.thickness_um} um (gc_check_params code {rc})"
+            )
         pos += 2
         rec = np.frombuffer(data, RT_OUT_DTYPE, len(c.counts), pos)
         pos += len(c.counts) * RT_OUT_DTYPE.itemsize
+        bad = sum(int(np.sum(~np.isfinite(rec[k]))) for k in ("torque", "fi", "fg", "gp"))
+        if bad:
+            raise RuntimeError(
+                f"run-time core output not finite ({bad} values) in case {c.material} "
+                f"{c.thickness_um} um: on the AVR, RAM exhausted (stack into the state)?"
+            )
         outs.append(rec)
         lo, hi = surrogate.thickness_range(c.material)
         t = min(max(c.thickness_um / 1000.0, lo), hi)
