@@ -162,10 +162,10 @@ def run_case(case: dict, n_trials: int = 4, gap_channel: bool = False,
         warnings.simplefilter("ignore")
         d = diagnose(trials, s, chain)
     v = d.report["verdict"]
-    fresh, fresh_g = (
+    fresh, fresh_g, fresh_u = (
         _fresh_shrinks(unseen, case["seed"], acquisition, d.augmented)
         if v["label"] == "explained" and d.augmented is not None
-        else (None, None)
+        else (None, None, None)
     )
     return {
         **case,
@@ -188,6 +188,7 @@ def run_case(case: dict, n_trials: int = 4, gap_channel: bool = False,
         "by_block": d.report["baseline"]["by_block"],
         "fresh_shrink": fresh,
         "fresh_shrink_gaussian": fresh_g,
+        "fresh_shrink_unfloored": fresh_u,
         "seconds": time.perf_counter() - t0,
     }
 
@@ -201,7 +202,15 @@ def fresh_trial_shrink(unseen, seed: int, acquisition: str, augmented: dict) -> 
     an encoder level the residual counted beyond the force range of both models over the level
     (``AugmentedModel.handle_force_N`` at the level's ends), elsewhere ``r / sigma``; the models
     see the angle reconstructed between the encoder counts (as the diagnosis): < 0 when the
-    augmented model predicts the new trial worse than the baseline.  See
+    augmented model predicts the new trial worse than the baseline.
+
+    The baseline's ``S`` is floored at the significance level ``SIGNIFICANT_RHO x N`` (N
+    samples; as the diagnosis' :func:`grasprom.gap.verdict.gap_left`: below it a gap is not told
+    from the noise), and the shrink is NaN when neither model leaves a significant gap on the
+    fresh trial: there is then nothing to shrink, and a ratio of two noise-level figures (39
+    against 245 on a trial of 565 samples) would read as a large negative shrink.  It is
+    negative when the augmented model leaves a significant gap larger than the baseline's.  The
+    unfloored figure is kept as ``fresh_shrink_unfloored``.  See
     :func:`fresh_trial_shrink_gaussian` for the figure of earlier versions."""
     return _fresh_shrinks(unseen, seed, acquisition, augmented)[0]
 
@@ -215,10 +224,14 @@ def fresh_trial_shrink_gaussian(unseen, seed: int, acquisition: str, augmented: 
     return _fresh_shrinks(unseen, seed, acquisition, augmented)[1]
 
 
-def _fresh_shrinks(unseen, seed: int, acquisition: str, augmented: dict) -> tuple[float, float]:
-    """(interval-likelihood, Gaussian) fresh-trial shrink of :func:`fresh_trial_shrink`."""
+def _fresh_shrinks(
+    unseen, seed: int, acquisition: str, augmented: dict
+) -> tuple[float, float, float]:
+    """(interval-likelihood floored at the significance level, Gaussian, interval-likelihood
+    unfloored) fresh-trial shrink of :func:`fresh_trial_shrink`."""
     from grasprom.chain import kinematics as kin
     from grasprom.gap import AugmentedModel, validate_trial
+    from grasprom.gap.criteria import SIGNIFICANT_RHO
     from grasprom.gap.likelihood import interval_z
     from grasprom.gap.prepare import prepare_trial
 
@@ -250,7 +263,14 @@ def _fresh_shrinks(unseen, seed: int, acquisition: str, augmented: dict) -> tupl
         s_gau.append(float(r @ r) - p.F.size)
     for s_b, s_a in (s_int, s_gau):
         out.append(float("nan") if s_b <= 0 else 1.0 - float(np.sqrt(max(s_a, 0.0) / s_b)))
-    return out[0], out[1]
+    floor = SIGNIFICANT_RHO * p.F.size
+    s_b, s_a = s_int
+    floored = (
+        float("nan")
+        if max(s_b, s_a) <= floor
+        else 1.0 - float(np.sqrt(max(s_a, 0.0) / max(s_b, floor)))
+    )
+    return floored, out[1], out[0]
 
 
 def _fresh_summary(results: list[dict], key: str = "fresh_shrink", prefix: str = "fresh") -> dict:
@@ -363,6 +383,7 @@ def summarise(results: list[dict]) -> dict:
         "median_shrink": float(np.median(shr)) if shr else float("nan"),
         **_fresh_summary(results),
         **_fresh_summary(results, "fresh_shrink_gaussian", "fresh_gaussian"),
+        **_fresh_summary(results, "fresh_shrink_unfloored", "fresh_unfloored"),
         "median_shrink_rms": float(np.median([r["shrink_rms"] for r in lib])) if lib else None,
         "null_to_none": float(np.mean([r["label"] == "none" for r in nulls]))
         if nulls
@@ -471,6 +492,12 @@ def print_report(results: list[dict]) -> None:
         f"n = {s['fresh_n']}): median {100 * s['fresh_median']:.1f} %, worst "
         f"{100 * s['fresh_worst']:.1f} %; negative with confidence >= 0.5: "
         f"{len(s['fresh_negative_conf_ge_0.5'])} {s['fresh_negative_conf_ge_0.5']}"
+    )
+    print(
+        f"    unfloored (a fresh trial without a significant gap counted too): median "
+        f"{100 * s['fresh_unfloored_median']:.1f} %, worst "
+        f"{100 * s['fresh_unfloored_worst']:.1f} %; negative with confidence >= 0.5: "
+        f"{len(s['fresh_unfloored_negative_conf_ge_0.5'])}"
     )
     print(
         f"    weighted as before the interval likelihood (Gaussian quantum, recorded angle): "

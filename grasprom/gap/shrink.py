@@ -193,3 +193,41 @@ def shrink_by_phase(
             )
         )
     return out
+
+
+def trial_shrinks(
+    z_before: Sequence[np.ndarray],
+    z_after: Sequence[np.ndarray],
+    null: Sequence[np.ndarray],
+    floor: float,
+) -> np.ndarray:
+    """Held-out shrink of every trial whose baseline gap is significant.
+
+    ``1 - sqrt(max(S1, 0) / S0)`` per trial with ``S0 > f N`` (``S = sum z^2 - N0``, ``N0`` the
+    trial's chi2 of a correct model, ``N`` its samples, ``f`` = ``floor``, the systematic ratio
+    below which a gap is not told from the noise): negative when the effect set predicts the
+    trial worse than the baseline.  The spread over the trials shows how well the fitted effect
+    carries over from one trial (specimen, thickness, speed) to another.
+
+    Parameters
+    ----------
+    z_before, z_after : sequence of ndarray
+        Per trial: the baseline's and the effect set's held-out ``z`` (1).
+    null : sequence of ndarray
+        Per trial: the expected ``z^2`` of a correct model per sample (1).
+    floor : float
+        Systematic ratio of the significance level (1).
+
+    Returns
+    -------
+    ndarray
+        One shrink per trial (1), NaN where the baseline's gap on the trial is not significant
+        (there is nothing to shrink: the trial says nothing of the transfer).
+    """
+    out = np.full(len(z_before), math.nan)
+    for i, (z0, z1, n0) in enumerate(zip(z_before, z_after, null)):
+        f0 = floor * z0.size
+        s0, s1 = float(z0 @ z0) - float(np.sum(n0)), float(z1 @ z1) - float(np.sum(n0))
+        if s0 > f0:
+            out[i] = 1.0 - math.sqrt(max(s1, 0.0) / s0)
+    return out

@@ -18,7 +18,7 @@ from grasprom.gap.criteria import CONFIDENCE_PLATT, EXPLAINED_SHARE, SIGNIFICANT
 from grasprom.gap.crossval import CrossValidation
 from grasprom.gap.prepare import PHASES
 from grasprom.gap.selection import CandidateSearch
-from grasprom.gap.shrink import shrink_by_phase
+from grasprom.gap.shrink import shrink_by_phase, trial_shrinks
 from grasprom.gap.stats import rms, stats_by_label
 
 VERDICTS = ("explained", "none", "unexplained", "not_diagnosable")
@@ -77,6 +77,7 @@ class Verdict:
     shrink_rms: float
     reasons: tuple[str, ...] = ()
     confidence_raw: float | None = None
+    worst_trial_shrink: float | None = None
 
 
 def gap_left(search: CandidateSearch, key: tuple[str, ...]) -> float:
@@ -111,14 +112,33 @@ def separation(search: CandidateSearch, e_share: float) -> float:
     return float(np.clip(max(by_share, by_noise) / math.log(5.0), 0.0, 1.0))
 
 
+def transfer(gap: BaselineGap, cv: CrossValidation) -> float | None:
+    """The worst held-out shrink over the trials with a significant baseline gap
+    (:func:`~.shrink.trial_shrinks`), None with fewer than two such trials.
+
+    The pooled share can be high while one trial (a specimen of its own, another thickness) is
+    predicted much worse than the others: a fresh trial may then be one of those.
+    """
+    if cv.z is None:
+        return None
+    ts = trial_shrinks(gap.z, cv.z, gap.null, SIGNIFICANT_RHO)
+    ts = ts[np.isfinite(ts)]
+    return float(np.min(ts)) if ts.size >= 2 else None
+
+
 def classify(
-    gap: BaselineGap, chosen: tuple[str, ...], e_share: float, sep: float
+    gap: BaselineGap,
+    chosen: tuple[str, ...],
+    e_share: float,
+    sep: float,
+    worst_trial: float | None = None,
 ) -> tuple[str, list[str], float, str]:
     """Label, effects, confidence (unclipped) and message of the verdict.
 
     The confidence of ``explained`` is the explained share x (0.4 + 0.6 ``sep``) x the margin of
     the gap's significance, ``rho / SIGNIFICANT_RHO - 1`` clipped to 0..1 (a gap barely above
-    the noise is weak evidence: a fresh trial's gap may be noise).
+    the noise is weak evidence: a fresh trial's gap may be noise) x the worst trial's held-out
+    shrink ``worst_trial`` clipped to 0..1 (:func:`transfer`; 1 when None).
     """
     rho0, noise = gap.rho, gap.noise_N
     if not rho0 > SIGNIFICANT_RHO:
@@ -133,11 +153,17 @@ def classify(
         # weak evidence where the gap is barely significant: the margin above the threshold,
         # as the confidence of ``none`` is the margin below it (full from twice the threshold)
         margin = float(np.clip(rho0 / SIGNIFICANT_RHO - 1.0, 0.0, 1.0))
-        conf = float(np.clip(e_share, 0.0, 1.0)) * (0.4 + 0.6 * sep) * margin
+        worst = 1.0 if worst_trial is None else float(np.clip(worst_trial, 0.0, 1.0))
+        conf = float(np.clip(e_share, 0.0, 1.0)) * (0.4 + 0.6 * sep) * margin * worst
         msg = (
             f"{' + '.join(chosen)} explains {100 * min(e_share, 1.0):.0f} % of the systematic "
             "gap on held-out trials"
         )
+        if worst < EXPLAINED_SHARE:
+            msg += (
+                f" (but only {100 * worst_trial:.0f} % of the gap of the worst predicted trial: "
+                "the effect may carry over poorly to a new trial)"
+            )
         return "explained", list(chosen), conf, msg
     conf = float(np.clip(1.0 - max(e_share, 0.0) / EXPLAINED_SHARE, 0.0, 1.0)) * min(
         1.0, rho0 / (4 * SIGNIFICANT_RHO)
@@ -177,7 +203,8 @@ def judge(
     e_share = search.share(chosen)
     rms_after = rms(search.cv[chosen].residuals)
     sep = separation(search, e_share)
-    label, effects_out, conf, msg = classify(gap, chosen, e_share, sep)
+    worst_trial = transfer(gap, search.cv[chosen]) if n_trials >= 2 else None
+    label, effects_out, conf, msg = classify(gap, chosen, e_share, sep, worst_trial)
     worse = worse_phases(gap, search, sigmas) if label == "explained" and sigmas else []
     if worse:
         label, effects_out = "unexplained", []
@@ -198,7 +225,16 @@ def judge(
         else 0.0
     )
     return Verdict(
-        label, effects_out, conf, msg, e_share, rms_before, rms_after, shrink, shrink_rms
+        label,
+        effects_out,
+        conf,
+        msg,
+        e_share,
+        rms_before,
+        rms_after,
+        shrink,
+        shrink_rms,
+        worst_trial_shrink=worst_trial,
     )
 
 
@@ -290,6 +326,7 @@ def verdict_section(v: Verdict, gap: BaselineGap, search: CandidateSearch) -> di
         "shrink_rms": v.shrink_rms,
         "confidence": float(np.clip(v.confidence, 0.0, 1.0)),
         "confidence_raw": v.confidence_raw,
+        "worst_trial_shrink": v.worst_trial_shrink,
         "explained_share": v.explained_share if v.label not in ("none", "not_diagnosable") else 0.0,
         "best_candidate": list(search.chosen),
         "by_phase_before": {k: val["rms_N"] for k, val in by_phase_before.items()},

@@ -171,6 +171,8 @@ def test_blind_small_benchmark(surrogate):
         assert overall["phase"] == "all" and overall["low"] <= overall["shrink"] <= overall["high"]
         if v["label"] == "explained":
             assert overall["shrink"] == pytest.approx(v["shrink"], abs=1e-9)
+            # the worst trial's held-out shrink (confidence factor) is at most 1
+            assert v["worst_trial_shrink"] is None or v["worst_trial_shrink"] <= 1.0
         # where.block from the jaw load cell: the block of the truth effect (three of each of
         # tissue and mechanism, two sensor cases); the block-attribution figure of
         # benchmarks/bench_diagnosis.py is 48/48 single cases (seed 2024, 96/96 on seeds 11, 777)

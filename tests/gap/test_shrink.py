@@ -61,3 +61,22 @@ def test_interval_widens_with_trial_to_trial_spread_and_needs_three_trials():
 def test_bootstrap_is_reproducible():
     data = _trials(5, (0.4, 0.2), (0.2, 0.1), spread=0.2)
     assert shrink_by_phase(*data) == shrink_by_phase(*data)
+
+
+def test_trial_shrinks_against_hand_computed_chi2():
+    """Per-trial held-out shrink ``1 - sqrt(max(S1, 0) / S0)`` (``S = sum z^2 - N0``) on trials
+    built by hand: removed gap 1, a quarter of the chi2 left 0.5, worse than the baseline
+    negative, a baseline gap below the significance level (``S0 <= N``) NaN."""
+    from grasprom.gap.shrink import trial_shrinks
+
+    n = 100
+    one = np.ones(n)
+    z0 = [3.0 * one, np.sqrt(5.0) * one, 1.2 * one, 2.0 * one]  # S0 = 800, 400, 44, 300
+    z1 = [one, np.sqrt(2.0) * one, one, 3.0 * one]  # S1 = 0, 100, 0, 800
+    got = trial_shrinks(z0, z1, [one] * 4, floor=1.0)
+    assert got[0] == pytest.approx(1.0)
+    assert got[1] == pytest.approx(0.5)
+    assert np.isnan(got[2])
+    assert got[3] == pytest.approx(1.0 - np.sqrt(800.0 / 300.0))
+    # the floor is in noise units: at floor 0.4 the third trial (rho 0.44) counts
+    assert trial_shrinks(z0[2:3], z1[2:3], [one], floor=0.4)[0] == pytest.approx(1.0)
