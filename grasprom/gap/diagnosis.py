@@ -289,7 +289,8 @@ def diagnose(
     search = search_candidates(preps, cands, gap, surrogate, chain, try_pairs)
     verdict = judge(gap, search, len(preps), [p.sigma for p in preps])
     blocks = frozenset(EFFECTS[e].block for e in search.chosen)
-    verdict = checked_verdict(verdict, search, _measured_block(gap), blocks)
+    one_thickness = len(preps) >= 2 and len({(p.thickness, p.material) for p in preps}) == 1
+    verdict = checked_verdict(verdict, search, _measured_block(gap), blocks, one_thickness)
     verdict = calibrated(verdict, len(preps))
     chosen_fit = fit_effects(preps, search.chosen, surrogate, chain)
     reasons = screen_trials(preps)

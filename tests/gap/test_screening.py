@@ -283,3 +283,25 @@ def test_explained_confidence_scales_with_the_worst_trial():
     assert good == pytest.approx(0.855)
     assert "worst predicted trial" in msg_half and "50 %" in msg_half
     assert "worst" not in msg_full and "worst" not in msg_good
+
+
+def test_one_thickness_halves_the_tissue_lookalikes():
+    """With all trials at one nominal thickness a thickness error, a stiffness scale and a jaw
+    compliance shift the force curve alike: their ``explained`` confidence is halved and the
+    message says why; other effects, or trials at two thicknesses, keep theirs."""
+    from types import SimpleNamespace
+
+    from grasprom.gap.verdict import Verdict, checked_verdict
+
+    def check(effect, one_thickness):
+        search = SimpleNamespace(chosen=(effect,), singles=[(effect,)], pair_rows=[])
+        v = Verdict("explained", [effect], 0.8, f"{effect} explains 95 %", 0.95, 1.0, 0.1, 0.9,
+                    0.9)  # fmt: skip
+        return checked_verdict(v, search, None, frozenset({"tissue"}), one_thickness)
+
+    for effect in ("thickness_error", "tissue_stiffness_scale", "jaw_compliance"):
+        v = check(effect, True)
+        assert v.confidence == pytest.approx(0.4)
+        assert "one thickness" in v.message
+        assert check(effect, False).confidence == 0.8
+    assert check("backlash", True).confidence == 0.8
