@@ -116,7 +116,7 @@ def operating_margins(
         lo, hi = float(np.min(o.K_Nm_per_rad)), float(np.max(o.K_Nm_per_rad))
         z = _worst(grid, zeta, lo, hi)
         cases.append({"material": o.material, "thickness_mm": o.thickness_mm,
-                      "K_max_Nm_per_rad": hi, "damping_ratio_min": z,
+                      "K_min_Nm_per_rad": lo, "K_max_Nm_per_rad": hi, "damping_ratio_min": z,
                       "phase_margin_min_deg": _worst(grid, pm, lo, hi),
                       "meets_target": bool(z >= zeta_target)})  # fmt: skip
     ok = grid[zeta >= zeta_target]

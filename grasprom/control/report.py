@@ -69,9 +69,10 @@ def margins_lines(sm: dict[str, Any]) -> list[str]:
     w = om["worst"]
     lines = [
         f"target: {om['target']['statement']}: " + ("MET" if om["meets_target"] else "NOT MET"),
-        f"  worst case {w['material']} t = {w['thickness_mm']:g} mm (K up to "
-        f"{w['K_max_Nm_per_rad']:.4g} N m/rad): damping ratio {w['damping_ratio_min']:.3g}, "
-        f"phase margin {w['phase_margin_min_deg']:.3g} deg with the hand; "
+        f"  worst case {w['material']} t = {w['thickness_mm']:g} mm (K from "
+        f"{w['K_min_Nm_per_rad']:.4g} to {w['K_max_Nm_per_rad']:.4g} N m/rad; negative where "
+        f"the tissue softens): damping ratio {w['damping_ratio_min']:.3g}, smallest phase margin "
+        f"{w['phase_margin_min_deg']:.3g} deg with the hand over that range; "
         f"{sum(c['meets_target'] for c in om['cases'])}/{len(om['cases'])} cases meet it",
     ]
     g = om["grid"]
