@@ -109,7 +109,8 @@ def surrogate_rows(s: Surrogate) -> list[dict[str, Any]]:
     src = "grasprom.surrogate.CHECK_TOLERANCE"
     scale = f"{s.params.force_ref_N:g} N"
     return [
-        _row(f"surrogate: held-out haptic force error, max ({s.scheme}, all materials)",
+        _row(f"surrogate: held-out haptic force error, max ({s.scheme}, "
+             f"{', '.join(s.materials)})",
              h.get("force_max_pct"), f"% of {scale}", "<=", CHECK_TOLERANCE["force_max_pct"],
              src),
         _row("surrogate: held-out gap error where steeper, max", h.get("gap_max_mm"), "mm",
