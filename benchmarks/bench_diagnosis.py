@@ -17,6 +17,12 @@ attribution of single-effect cases (``where.block`` vs the block of the truth ef
 without it); the block analysis then splits gap and force law from the measured gap instead of
 fitting candidates to the jaw channel.
 
+``--acquisition`` records the trials as :data:`ACQUISITIONS` says; ``2khz`` synthesises them at
+2 kHz (``synth_case(rate_hz=2000)``: the same truth and trial conditions as at 1 kHz, sensor
+noise independent at every sample) -- until this version it interpolated the 1 kHz trials,
+whose added midpoints carry no noise of their own (the diagnosis' noise estimate, the median
+absolute second difference, then collapsed and every null case read as a significant gap).
+
 Usage::
 
     python benchmarks/bench_diagnosis.py [--seed 2024] [--per-effect 6] [--null 14] \
@@ -99,24 +105,36 @@ def case_list(seed: int, per_effect: int, n_null: int, n_ool: int) -> list[dict]
 
 
 ACQUISITIONS = ("ideal", "coarse", "jitter", "500hz", "2khz", "realistic")
-"""Acquisition conditions applied to the synthetic trials (``--acquisition``): ``coarse`` a
-0.1 deg angle encoder, ``jitter`` time stamps jittered by +-30 % of the sample period,
-``500hz`` / ``2khz`` resampled, ``realistic`` coarse + jitter + 500 Hz."""
+"""Acquisition conditions of the synthetic trials (``--acquisition``): ``ideal`` the 1 kHz
+trials as synthesised, ``coarse`` a 0.1 deg angle encoder, ``jitter`` time stamps jittered by
++-30 % of the sample period, ``500hz`` every second sample of the 1 kHz trial (a slower
+acquisition), ``2khz`` trials synthesised at 2 kHz (:data:`SYNTH_RATE_HZ`: same truth and
+conditions, sensor noise independent at every sample; no interpolation), ``realistic`` coarse
++ jitter + 500 Hz."""
+
+SYNTH_RATE_HZ = {"2khz": 2000.0}
+"""Sample rate (Hz) the trials of an acquisition mode are synthesised at (1000 Hz if absent)."""
+
+
+def synth_rate_hz(mode: str) -> float:
+    """Sample rate (Hz) at which :func:`run_case` synthesises the trials of acquisition ``mode``."""
+    return SYNTH_RATE_HZ.get(mode, 1000.0)
 
 
 def acquire(df, mode: str, rng: np.random.Generator):
-    """A synthetic trial as an acquisition ``mode`` would record it (see :data:`ACQUISITIONS`)."""
-    import pandas as pd
-
+    """A synthetic trial (synthesised at :func:`synth_rate_hz` of ``mode``) as an acquisition
+    ``mode`` would record it (see :data:`ACQUISITIONS`)."""
     if mode == "ideal":
         return df
     t = df["time_s"].to_numpy()
     dt = float(np.median(np.diff(t)))
+    if abs(dt * synth_rate_hz(mode) - 1.0) > 1e-3:
+        raise ValueError(
+            f"acquisition {mode!r} takes a trial synthesised at {synth_rate_hz(mode):g} Hz, "
+            f"got one at {1.0 / dt:g} Hz"
+        )
     if mode in ("500hz", "realistic"):
         df = df.iloc[:: max(int(round(0.002 / dt)), 1)].reset_index(drop=True)
-    if mode == "2khz":
-        t2 = np.arange(t[0], t[-1], 0.0005)
-        df = pd.DataFrame({c: np.interp(t2, t, df[c].to_numpy()) for c in df.columns})
     if mode in ("coarse", "realistic"):
         df = df.assign(theta_deg=np.round(df["theta_deg"].to_numpy() / 0.1) * 0.1)
     if mode in ("jitter", "realistic"):
@@ -131,8 +149,9 @@ def run_case(case: dict, n_trials: int = 4, gap_channel: bool = False,
     """Synthesise and diagnose one case; returns truth, verdict and timing.
 
     ``gap_channel`` adds the measured jaw gap ``gap_mm`` to the synthetic trials;
-    ``acquisition`` records them as :func:`acquire` says; ``tremor_deg`` adds hand tremor
-    (deg RMS, 6-12 Hz) to the handle angle.
+    ``acquisition`` sets their sample rate (:func:`synth_rate_hz`) and records them as
+    :func:`acquire` says, the fresh trial too; ``tremor_deg`` adds hand tremor (deg RMS,
+    6-12 Hz) to the handle angle.
     """
     from grasprom.chain import kinematics as kin
     from grasprom.gap import diagnose, synth_case, validate_trial
@@ -149,6 +168,7 @@ def run_case(case: dict, n_trials: int = 4, gap_channel: bool = False,
         n_trials=n_trials + 1,
         gap_channel=gap_channel,
         tremor_deg=tremor_deg,
+        rate_hz=synth_rate_hz(acquisition),
     )
     *seen, unseen = sc.trials
     rng = np.random.default_rng(case["seed"] + 17)
@@ -196,9 +216,10 @@ def run_case(case: dict, n_trials: int = 4, gap_channel: bool = False,
 def fresh_trial_shrink(unseen, seed: int, acquisition: str, augmented: dict) -> float:
     """Independently measured shrink: the augmented model against the baseline on one more
     trial of the same truth (``unseen``, the synthetic trial after the diagnosed ones of the
-    case ``seed``; recorded with the same ``acquisition``), weighted as the diagnosis weighs
-    its samples (:mod:`grasprom.gap.likelihood`): ``1 - sqrt(max(S_aug, 0) / S_base)``, ``S``
-    the systematic chi2 ``sum z^2 - sum E[z^2]`` on the analysis grid, where the angle rests in
+    case ``seed``, synthesised at the same rate and recorded with the same ``acquisition``),
+    weighted as the diagnosis weighs its samples (:mod:`grasprom.gap.likelihood`):
+    ``1 - sqrt(max(S_aug, 0) / S_base)``, ``S`` the systematic chi2 ``sum z^2 - sum E[z^2]``
+    on the analysis grid, where the angle rests in
     an encoder level the residual counted beyond the force range of both models over the level
     (``AugmentedModel.handle_force_N`` at the level's ends), elsewhere ``r / sigma``; the models
     see the angle reconstructed between the encoder counts (as the diagnosis): < 0 when the

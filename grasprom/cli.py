@@ -1140,6 +1140,15 @@ def _synth_parser() -> argparse.ArgumentParser:
         metavar="DEG",
         help="hand tremor on the handle angle, deg RMS in 6-12 Hz (default 0: none)",
     )
+    p.add_argument(
+        "--rate-hz",
+        type=float,
+        default=1000.0,
+        metavar="HZ",
+        help="sample rate of every channel, Hz, 100 to 20000 (default 1000); the force noise is "
+        "white at every sample, and one seed gives the same truth and trial conditions at every "
+        "rate",
+    )
     src = p.add_mutually_exclusive_group()
     src.add_argument("--surrogate", default=None, metavar="FILE", help="surrogate JSON")
     src.add_argument("--fe", default=None, metavar="DIR", help="FE sweep (default shipped)")
@@ -1181,6 +1190,7 @@ def _cmd_synth(args: argparse.Namespace) -> int:
             jaw_load_cell=not args.no_jaw_cell,
             gap_channel=args.gap_channel,
             tremor_deg=args.tremor,
+            rate_hz=args.rate_hz,
         )
     except (OSError, ValueError) as exc:
         print(f"grasprom synth: {exc}", file=sys.stderr)

@@ -8,6 +8,12 @@ parameters go to a separate ``truth.json`` that the diagnosis never reads.
 A case alternates two wall thicknesses and fast / slow closing over its trials.  The gap noise
 comes from its own random stream (seeded from the case seed), so switching the ``gap_mm``
 channel on or off changes no other value of a case.
+
+The sample rate is 1 kHz by default (``rate_hz``).  Whatever the rate, the case's random stream
+is drawn from as at 1 kHz, so one seed gives the same truth and the same trial conditions
+(durations, target forces, real thicknesses) at every rate; at a rate other than 1 kHz the
+white sensor noise of each trial comes from a stream of its own (seeded from the case seed and
+the trial number), independent at every sample.
 """
 
 from __future__ import annotations
@@ -29,7 +35,13 @@ from grasprom.gap.synth_effects import (
     SYNTH_EFFECTS,
     random_effect_params,
 )
-from grasprom.gap.synth_truth import TrialSpec, simulate_trial
+from grasprom.gap.synth_truth import (
+    SAMPLE_RATE_HZ,
+    TrialSpec,
+    check_rate_hz,
+    simulate_trial,
+    trial_samples,
+)
 from grasprom.surrogate import Surrogate
 
 GAP_NOISE_MM = (0.005, 0.010)
@@ -38,6 +50,9 @@ _GAP_STREAM = 0x6A9
 """Second seed word of the ``gap_mm`` channel's own random stream."""
 _TREMOR_STREAM = 0x7E3
 """Second seed word of the hand tremor's own random stream."""
+_NOISE_STREAM = 0x5A4
+"""Second seed word of the force noise's own random streams at rates other than 1 kHz (the
+third word is the trial number)."""
 
 
 @dataclass
@@ -131,6 +146,52 @@ def _tremor_stream(seed: int, tremor_deg: float) -> tuple[np.random.Generator, f
     return (np.random.default_rng([seed, _TREMOR_STREAM]), tremor_deg) if tremor_deg else None
 
 
+def _noise_stream(seed: int, i: int, rate_hz: float) -> np.random.Generator | None:
+    """Own noise stream of trial ``i`` at a rate other than 1 kHz (None at 1 kHz: the case
+    stream draws the noise, as before ``rate_hz`` existed)."""
+    if rate_hz == SAMPLE_RATE_HZ:
+        return None
+    return np.random.default_rng([seed, _NOISE_STREAM, i])
+
+
+@dataclass(frozen=True)
+class _CaseSetup:
+    """What the trials of one case share (see :func:`synth_case`; mm, N, Hz)."""
+
+    effects: dict[str, dict[str, float]]
+    surrogate: Surrogate
+    chain: kin.ChainParams
+    material: str
+    thicknesses_mm: tuple[float, float]
+    noise_N: float
+    jaw_noise_N: float
+    gap_noise: tuple[np.random.Generator, float] | None
+    tremor: tuple[np.random.Generator, float] | None
+    rate_hz: float
+    seed: int
+    jaw_load_cell: bool
+
+
+def _case_trial(
+    c: _CaseSetup, i: int, rng: np.random.Generator
+) -> tuple[SynthTrial, dict[str, Any]]:
+    """Trial ``i`` of the case ``c`` and its truth info; its conditions, thickness scatter and
+    (at 1 kHz) noise drawn from the case stream ``rng``, which off 1 kHz is drawn from as at
+    1 kHz (the noise then comes from the trial's own stream), so that the next trials'
+    conditions do not depend on the rate."""
+    spec = _trial_spec(i, rng, *c.thicknesses_mm, c.material)
+    own_noise = _noise_stream(c.seed, i, c.rate_hz)
+    df, info = simulate_trial(
+        spec, c.effects, c.surrogate, c.chain, rng, c.noise_N, c.jaw_noise_N, c.gap_noise,
+        c.tremor, c.rate_hz, own_noise,
+    )  # fmt: skip
+    if own_noise is not None:
+        rng.standard_normal(2 * trial_samples(spec, SAMPLE_RATE_HZ))  # handle + jaw noise
+    if not c.jaw_load_cell:
+        df = df.drop(columns=["force_jaw_N"])
+    return SynthTrial(df, _sidecar(spec, i)), info | {"target_jaw_N": spec.target_jaw_N}
+
+
 def synth_case(
     effects: Sequence[str] | dict[str, dict[str, float]] = (),
     *,
@@ -142,6 +203,7 @@ def synth_case(
     jaw_load_cell: bool = True,
     gap_channel: bool = False,
     tremor_deg: float = 0.0,
+    rate_hz: float = SAMPLE_RATE_HZ,
 ) -> SynthCase:
     """Synthesise the trials of one blind case.
 
@@ -170,12 +232,19 @@ def synth_case(
         Hand tremor on the handle angle, deg RMS, 6-12 Hz (0: none; from its own random
         stream, like the gap channel).  Physiological tremor at the finger is of the order of
         0.1 mm, i.e. about 0.1 deg of handle.
+    rate_hz : float
+        Sample rate of every channel, Hz (100 to 20000; default 1000).  The white noise of the
+        force channels has the same rms at every sample and rate (``truth["noise_N"]``), and
+        is independent from sample to sample.  The same seed gives the same truth and trial
+        conditions at every rate (module docstring); at 1000 Hz the trials are those of the
+        versions without ``rate_hz``, bit for bit.
 
     Returns
     -------
     SynthCase
         Trials (tables + sidecars) and the withheld truth.
     """
+    rate_hz = check_rate_hz(rate_hz)
     chain = chain or kin.ChainParams()
     rng = np.random.default_rng(seed)
     truth_effects = _truth_effects(effects, rng)
@@ -188,23 +257,19 @@ def synth_case(
     jaw_noise = float(rng.uniform(0.03, 0.1))
     gap_noise = _gap_stream(seed) if gap_channel else None
     tremor = _tremor_stream(seed, tremor_deg)
-    trials = []
-    infos = []
-    for i in range(n_trials):
-        spec = _trial_spec(i, rng, t_a, t_b, material)
-        df, info = simulate_trial(
-            spec, truth_effects, surrogate, chain, rng, noise, jaw_noise, gap_noise, tremor
-        )
-        if not jaw_load_cell:
-            df = df.drop(columns=["force_jaw_N"])
-        trials.append(SynthTrial(df, _sidecar(spec, i)))
-        infos.append(info | {"target_jaw_N": spec.target_jaw_N})
-    truth = _truth(truth_effects, seed, material, noise, jaw_noise, infos)
+    setup = _CaseSetup(
+        truth_effects, surrogate, chain, material, (t_a, t_b), noise, jaw_noise, gap_noise,
+        tremor, rate_hz, seed, jaw_load_cell,
+    )  # fmt: skip
+    made = [_case_trial(setup, i, rng) for i in range(n_trials)]
+    truth = _truth(truth_effects, seed, material, noise, jaw_noise, [m[1] for m in made])
     if gap_noise is not None:
         truth["gap_noise_mm"] = gap_noise[1]
     if tremor is not None:
         truth["tremor_deg"] = tremor_deg
-    return SynthCase(trials, truth)
+    if rate_hz != SAMPLE_RATE_HZ:
+        truth["rate_hz"] = rate_hz
+    return SynthCase([m[0] for m in made], truth)
 
 
 def write_case(case: SynthCase, out_dir: str | Path) -> list[Path]:

@@ -13,7 +13,7 @@ tissue_viscoelasticity      nonlinear quasi-linear viscoelasticity with a *power
                             ``dG(t) = A (1 + t/tau)^-alpha`` acting on a strain-dependent
                             elastic response, by direct convolution (candidate: 3-term Prony)
 mechanism_friction          LuGre (bristle state, Stribeck curve, presliding stiffness, viscous
-                            term, load-dependent Coulomb level) integrated at 1 kHz
+                            term, load-dependent Coulomb level) integrated at the sample rate
                             (candidate: Coulomb + load term + viscous, no state)
 backlash                    play on the *rod stroke* (mm), so the equivalent handle play varies
                             along the stroke; mapped back through the chain (candidate: play on
@@ -41,7 +41,10 @@ jaw gap where the tissue is, as a non-contact laser triangulation displacement s
 jaw tips would measure it -- the kinematic gap of the linkage angle after the truth backlash
 (play on the rod stroke) plus the truth jaw deflection ``c F^p`` at the true jaw force, with white
 noise of 5-10 um rms (:data:`grasprom.gap.synth.GAP_NOISE_MM`) and a 1 um resolution
-(:data:`GAP_RESOLUTION_MM`).  Time base 1 kHz.
+(:data:`GAP_RESOLUTION_MM`).  Time base :data:`SAMPLE_RATE_HZ` (1 kHz) by default, any rate in
+:data:`RATE_RANGE_HZ` on request: the time grid, the angle profile, the tremor filter, the LuGre
+integration, the sensor lag and the drifts follow the rate, and the sensor noise is white at
+every sample (the same rms per sample at every rate).
 """
 
 from __future__ import annotations
@@ -49,6 +52,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from numbers import Real
 from typing import Any
 
 import numpy as np
@@ -59,6 +63,9 @@ from grasprom.chain import kinematics as kin
 from grasprom.surrogate import Surrogate
 
 SAMPLE_RATE_HZ = 1000.0
+"""Default sample rate of the synthetic trials (Hz)."""
+RATE_RANGE_HZ = (100.0, 20000.0)
+"""Accepted sample rates of the synthetic trials (Hz, inclusive)."""
 ENCODER_COUNTS_PER_REV = 16384  # 14-bit motor encoder
 PULLEY_RADIUS_MM = 10.0
 GAP_RESOLUTION_MM = 0.001
@@ -77,6 +84,16 @@ class TrialSpec:
     pre_s: float
     post_s: float
     target_jaw_N: float
+
+
+def check_rate_hz(rate_hz: float) -> float:
+    """``rate_hz`` (Hz) as a float, or a ValueError unless it is a finite number within
+    :data:`RATE_RANGE_HZ`."""
+    lo, hi = RATE_RANGE_HZ
+    ok = isinstance(rate_hz, Real) and not isinstance(rate_hz, bool)
+    if not (ok and math.isfinite(rate_hz) and lo <= rate_hz <= hi):
+        raise ValueError(f"rate_hz: must be a sample rate of {lo:g} to {hi:g} Hz, got {rate_hz!r}")
+    return float(rate_hz)
 
 
 # ----------------------------------------------------------------------------- elements
@@ -131,21 +148,40 @@ def compliant_jaw_force(
     return 0.5 * (lo + hi)
 
 
-def theta_profile(spec: TrialSpec, theta_min: float, chain: kin.ChainParams) -> np.ndarray:
-    """Handle angle (deg) at 1 kHz: open, cosine close to ``theta_min``, hold, reopen, open."""
-    hi = chain.theta_open_deg
+def _segment_samples(spec: TrialSpec, rate_hz: float) -> tuple[int, int, int, int, int]:
+    """Samples of the open, closing, hold, opening and open segments at ``rate_hz`` (Hz)."""
+    return (
+        int(spec.pre_s * rate_hz),
+        max(int(round(spec.close_s * rate_hz)), 1),
+        int(spec.hold_s * rate_hz),
+        max(int(round(spec.open_s * rate_hz)), 1),
+        int(spec.post_s * rate_hz),
+    )
 
-    def ramp(a: float, b: float, dur: float) -> np.ndarray:
-        m = max(int(round(dur * SAMPLE_RATE_HZ)), 1)
+
+def trial_samples(spec: TrialSpec, rate_hz: float = SAMPLE_RATE_HZ) -> int:
+    """Number of samples of a trial of conditions ``spec`` at ``rate_hz`` (Hz)."""
+    return sum(_segment_samples(spec, check_rate_hz(rate_hz)))
+
+
+def theta_profile(
+    spec: TrialSpec, theta_min: float, chain: kin.ChainParams, rate_hz: float = SAMPLE_RATE_HZ
+) -> np.ndarray:
+    """Handle angle (deg) sampled at ``rate_hz`` (Hz): open, cosine close to ``theta_min``,
+    hold, reopen, open (:func:`trial_samples` samples)."""
+    hi = chain.theta_open_deg
+    pre, close, hold, open_, post = _segment_samples(spec, check_rate_hz(rate_hz))
+
+    def ramp(a: float, b: float, m: int) -> np.ndarray:
         s = np.arange(m) / m
         return a + (b - a) * 0.5 * (1 - np.cos(np.pi * s))
 
     parts = [
-        np.full(int(spec.pre_s * SAMPLE_RATE_HZ), hi),
-        ramp(hi, theta_min, spec.close_s),
-        np.full(int(spec.hold_s * SAMPLE_RATE_HZ), theta_min),
-        ramp(theta_min, hi, spec.open_s),
-        np.full(int(spec.post_s * SAMPLE_RATE_HZ), hi),
+        np.full(pre, hi),
+        ramp(hi, theta_min, close),
+        np.full(hold, theta_min),
+        ramp(theta_min, hi, open_),
+        np.full(post, hi),
     ]
     return np.concatenate(parts)
 
@@ -165,9 +201,10 @@ def with_tremor(
     rng: np.random.Generator,
     chain: kin.ChainParams,
     handle_stiffness_N_per_deg: np.ndarray,
+    rate_hz: float = SAMPLE_RATE_HZ,
 ) -> np.ndarray:
-    """``theta`` (deg, 1 kHz) with band-limited hand tremor of ``rms_deg`` (deg RMS in free
-    motion, 6-12 Hz).
+    """``theta`` (deg, sampled at ``rate_hz`` Hz) with band-limited hand tremor of ``rms_deg``
+    (deg RMS in free motion, 6-12 Hz).
 
     Zero-phase 4th-order Butterworth band-pass of white noise from ``rng``, scaled by
     ``1 / (1 + S / k_hand)`` with the handle's static stiffness ``S`` (N per deg of handle at
@@ -179,7 +216,7 @@ def with_tremor(
         return theta
     from scipy.signal import butter, sosfiltfilt
 
-    sos = butter(4, TREMOR_BAND_HZ, "bandpass", fs=SAMPLE_RATE_HZ, output="sos")
+    sos = butter(4, TREMOR_BAND_HZ, "bandpass", fs=check_rate_hz(rate_hz), output="sos")
     tremor = sosfiltfilt(sos, rng.standard_normal(theta.size))
     tremor *= rms_deg / max(float(tremor.std()), 1e-12)
     k_hand = HAND_STIFFNESS_N_PER_MM * chain.L3_mm * math.pi / 180.0  # N per deg
@@ -391,20 +428,27 @@ def simulate_trial(
     jaw_noise_N: float,
     gap_noise: tuple[np.random.Generator, float] | None = None,
     tremor: tuple[np.random.Generator, float] | None = None,
+    rate_hz: float = SAMPLE_RATE_HZ,
+    noise_rng: np.random.Generator | None = None,
 ) -> tuple[pd.DataFrame, dict[str, Any]]:
-    """One trial: measured table and truth info.
+    """One trial sampled at ``rate_hz`` (Hz, :data:`RATE_RANGE_HZ`): measured table and truth
+    info.
 
     ``gap_noise`` = (its own generator, rms in mm) adds the ``gap_mm`` channel; ``tremor`` =
     (its own generator, rms in deg) adds hand tremor to the angle (:func:`with_tremor`);
-    ``rng`` is touched by neither.
+    ``rng`` is touched by neither.  ``rng`` draws the thickness scatter, then the white noise
+    of the handle and jaw force channels (``noise_N``, ``jaw_noise_N`` N rms per sample,
+    :func:`trial_samples` draws each) unless ``noise_rng`` is given, which then draws that
+    noise instead.
     """
-    dt = 1.0 / SAMPLE_RATE_HZ
+    rate_hz = check_rate_hz(rate_hz)
+    dt = 1.0 / rate_hz
     law = _jaw_law(spec, effects, surrogate, chain, rng)
     theta_min = _squeeze_angle(law, spec, surrogate, chain)
-    theta = theta_profile(spec, theta_min, chain)
+    theta = theta_profile(spec, theta_min, chain, rate_hz)
     if tremor is not None:
         theta = with_tremor(
-            theta, tremor[1], tremor[0], chain, _handle_stiffness(theta, law, chain)
+            theta, tremor[1], tremor[0], chain, _handle_stiffness(theta, law, chain), rate_hz
         )
     n = theta.size
     time = dt * np.arange(n)
@@ -413,8 +457,9 @@ def simulate_trial(
     f_jaw = _relaxing_jaw_force(law.static(g_kin), time, effects)
     fi = _true_handle_force(theta, theta_eff, f_jaw, effects, chain, dt)
     fi = _sensor_reading(fi, time, effects, dt)
-    fi_meas = fi + noise_N * rng.standard_normal(n)
-    fj_meas = f_jaw + jaw_noise_N * rng.standard_normal(n)
+    nrng = rng if noise_rng is None else noise_rng
+    fi_meas = fi + noise_N * nrng.standard_normal(n)
+    fj_meas = f_jaw + jaw_noise_N * nrng.standard_normal(n)
     q = 360.0 * PULLEY_RADIUS_MM / (ENCODER_COUNTS_PER_REV * chain.L3_mm)  # deg per count
     th_meas = np.clip(q * np.round(theta / q), chain.theta_closed_deg, chain.theta_open_deg)
     df = pd.DataFrame(
