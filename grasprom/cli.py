@@ -381,12 +381,18 @@ def _augment_params(cmd: str, path: str, params, sur) -> tuple[object, dict]:
     for w in info["warnings"]:
         print(f"grasprom {cmd}: warning: {w}", file=sys.stderr)
     m = info["measurement"]
+    drift = (
+        f", drift {m['offset_rate_N_per_s']:.4g} N/s and {m['gain_rate_per_s']:.4g} 1/s"
+        if "offset_rate_N_per_s" in m
+        else ""
+    )
     print(
         f"grasprom {cmd}: augmented model {path} (sha256 {info['sha256'][:12]}): rendered "
         f"{', '.join(info['rendered']) or 'none'}; measurement-only, not rendered "
         f"{', '.join(info['measurement_only']) or 'none'}"
         + (
-            f" (offset {m['offset_N']:.4g} N, gain {m['gain']:.4g}, delay {m['delay_s']:.4g} s)"
+            f" (offset {m['offset_N']:.4g} N, gain {m['gain']:.4g}, delay {m['delay_s']:.4g} s"
+            f"{drift})"
             if info["measurement_only"]
             else ""
         )

@@ -420,3 +420,29 @@ def test_exports_load_the_augmented_model(surrogate, tmp_path, capsys):
     cfg = (out / "grasprom_controller" / "grasp_fixed_config.h").read_text()
     assert "#define GF_FRICTION 1" in cfg and "#define GF_N_PRONY 1" in cfg
     assert "#define GF_BACKLASH_HB 0" not in cfg
+
+
+def test_simulate_prints_the_drift_rates(surrogate, tmp_path, capsys):
+    """simulate --augmented with a sensor drift: the line names it measurement-only and states
+    its rates with units (N/s, 1/s), as given in the model."""
+    sur = surrogate.save(tmp_path / "sur.json")
+    aug = {
+        "format": gap.FORMAT_AUGMENTED,
+        "format_version": gap.FORMAT_VERSION,
+        "chain": {},
+        "effects": [
+            {"name": "sensor_drift",
+             "params": {"offset_rate_N_per_s": 0.025, "gain_rate_per_s": 0.0015}},
+        ],
+    }  # fmt: skip
+    (tmp_path / "aug.json").write_text(json.dumps(aug))
+    grasp_trajectory(close_s=0.3, hold_s=0.2, open_s=0.3, theta_closed_deg=1.0).to_csv(
+        tmp_path / "traj.csv", index=False
+    )
+    argv = ["simulate", "--trajectory", str(tmp_path / "traj.csv"), "--surrogate", str(sur),
+            "--thickness", "1.8", "--material", "mr", "--out", str(tmp_path / "a.csv"),
+            "--augmented", str(tmp_path / "aug.json")]  # fmt: skip
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "measurement-only, not rendered sensor_drift" in out
+    assert "drift 0.025 N/s and 0.0015 1/s" in out
