@@ -261,23 +261,26 @@ def test_mapping_clips_and_reports(surrogate):
     assert any("already render" in x for x in info3["warnings"])
 
 
-def test_measured_handle_force_column(surrogate, tmp_path, capsys):
-    """simulate --augmented: offset + gain x F(t - delay) in force_handle_measured_N."""
+def _augmented_files(surrogate, tmp_path, effects: list[dict]):
+    """The surrogate, an augmented model of ``effects`` and a short grasp trajectory in
+    ``tmp_path``; returns the surrogate's path."""
     sur = surrogate.save(tmp_path / "sur.json")
-    aug = {
-        "format": gap.FORMAT_AUGMENTED,
-        "format_version": gap.FORMAT_VERSION,
-        "chain": {},
-        "effects": [
-            {"name": "tissue_stiffness_scale", "params": {"scale": 1.2}},
-            {"name": "sensor_offset_gain", "params": {"offset_N": 0.4, "gain": 1.1}},
-            {"name": "latency", "params": {"delay_s": 0.01}},
-        ],
-    }
+    aug = {"format": gap.FORMAT_AUGMENTED, "format_version": gap.FORMAT_VERSION, "chain": {},
+           "effects": effects}  # fmt: skip
     (tmp_path / "aug.json").write_text(json.dumps(aug))
     grasp_trajectory(close_s=0.3, hold_s=0.2, open_s=0.3, theta_closed_deg=1.0).to_csv(
         tmp_path / "traj.csv", index=False
     )
+    return sur
+
+
+def test_measured_handle_force_column(surrogate, tmp_path, capsys):
+    """simulate --augmented: offset + gain x F(t - delay) in force_handle_measured_N."""
+    sur = _augmented_files(surrogate, tmp_path, [
+        {"name": "tissue_stiffness_scale", "params": {"scale": 1.2}},
+        {"name": "sensor_offset_gain", "params": {"offset_N": 0.4, "gain": 1.1}},
+        {"name": "latency", "params": {"delay_s": 0.01}},
+    ])  # fmt: skip
     common = ["simulate", "--trajectory", str(tmp_path / "traj.csv"), "--surrogate", str(sur),
               "--thickness", "1.8", "--material", "mr"]  # fmt: skip
     assert main(common + ["--out", str(tmp_path / "a.csv"),
@@ -425,20 +428,10 @@ def test_exports_load_the_augmented_model(surrogate, tmp_path, capsys):
 def test_simulate_prints_the_drift_rates(surrogate, tmp_path, capsys):
     """simulate --augmented with a sensor drift: the line names it measurement-only and states
     its rates with units (N/s, 1/s), as given in the model."""
-    sur = surrogate.save(tmp_path / "sur.json")
-    aug = {
-        "format": gap.FORMAT_AUGMENTED,
-        "format_version": gap.FORMAT_VERSION,
-        "chain": {},
-        "effects": [
-            {"name": "sensor_drift",
-             "params": {"offset_rate_N_per_s": 0.025, "gain_rate_per_s": 0.0015}},
-        ],
-    }  # fmt: skip
-    (tmp_path / "aug.json").write_text(json.dumps(aug))
-    grasp_trajectory(close_s=0.3, hold_s=0.2, open_s=0.3, theta_closed_deg=1.0).to_csv(
-        tmp_path / "traj.csv", index=False
-    )
+    sur = _augmented_files(surrogate, tmp_path, [
+        {"name": "sensor_drift",
+         "params": {"offset_rate_N_per_s": 0.025, "gain_rate_per_s": 0.0015}},
+    ])  # fmt: skip
     argv = ["simulate", "--trajectory", str(tmp_path / "traj.csv"), "--surrogate", str(sur),
             "--thickness", "1.8", "--material", "mr", "--out", str(tmp_path / "a.csv"),
             "--augmented", str(tmp_path / "aug.json")]  # fmt: skip
