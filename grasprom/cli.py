@@ -1299,36 +1299,6 @@ def _chosen_parser(
         parser = chosen
 
 
-def parse_command(argv: Sequence[str]) -> argparse.Namespace:
-    """Parse a ``grasprom`` command line without running it.
-
-    Parameters
-    ----------
-    argv : sequence of str
-        The arguments after ``grasprom`` (e.g. ``["tune", "--out", "tuning"]``).
-
-    Returns
-    -------
-    argparse.Namespace
-        The parsed options; ``command`` names the subcommand.
-
-    Raises
-    ------
-    SystemExit
-        Exit code 2 with the (sub)command's usage on stderr for bad arguments (an unknown option
-        is reported with the chosen subcommand's usage, not the top-level one).
-    """
-    argv = list(argv)
-    if argv and argv[0] in ("diagnose", "synth"):
-        parser = _diagnose_parser() if argv[0] == "diagnose" else _synth_parser()
-        return argparse.Namespace(command=argv[0], **vars(parser.parse_args(argv[1:])))
-    parser = _build_parser()
-    args, extra = parser.parse_known_args(argv)
-    if extra:  # the chosen subcommand's usage, not the top-level one (exits 2)
-        _chosen_parser(parser, args).error(f"unrecognized arguments: {' '.join(extra)}")
-    return args
-
-
 def main(argv: Sequence[str] | None = None, *, runner=None) -> int:
     """Entry point of the ``grasprom`` command.
 
@@ -1347,7 +1317,10 @@ def main(argv: Sequence[str] | None = None, *, runner=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] in ("diagnose", "synth"):
         return _delegated(argv[0])(argv[1:])
-    args = parse_command(argv)
+    parser = _build_parser()
+    args, extra = parser.parse_known_args(argv)
+    if extra:  # the chosen subcommand's usage, not the top-level one (exits 2)
+        _chosen_parser(parser, args).error(f"unrecognized arguments: {' '.join(extra)}")
     if args.command == "build":
         return _cmd_build(args, argv)
     if args.command == "sweep":

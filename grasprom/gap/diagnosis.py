@@ -98,6 +98,12 @@ def _candidates(effects: Sequence[str] | None) -> tuple[str, ...]:
     return cands
 
 
+def _one_thickness(preps: Sequence[PreparedTrial]) -> bool:
+    """Two or more trials, all of one nominal thickness and material: the held-out checks then
+    do not test the model across thicknesses."""
+    return len(preps) >= 2 and len({(p.thickness, p.material) for p in preps}) == 1
+
+
 def _contact_trials(
     trials: Sequence[Trial],
     surrogate: Surrogate,
@@ -131,7 +137,7 @@ def _contact_trials(
             "only one trial in contact: no cross-validation by trial is possible; effects are "
             "judged in-sample and the confidence is capped at 0.3"
         )
-    elif len({(p.thickness, p.material) for p in preps}) == 1:
+    elif _one_thickness(preps):
         warn_list.append(
             f"all trials in contact have one nominal thickness ({preps[0].thickness:g} mm, "
             f"{preps[0].material}): the held-out checks do not test the model across "
@@ -289,8 +295,7 @@ def diagnose(
     search = search_candidates(preps, cands, gap, surrogate, chain, try_pairs)
     verdict = judge(gap, search, len(preps), [p.sigma for p in preps])
     blocks = frozenset(EFFECTS[e].block for e in search.chosen)
-    one_thickness = len(preps) >= 2 and len({(p.thickness, p.material) for p in preps}) == 1
-    verdict = checked_verdict(verdict, search, _measured_block(gap), blocks, one_thickness)
+    verdict = checked_verdict(verdict, search, _measured_block(gap), blocks, _one_thickness(preps))
     verdict = calibrated(verdict, len(preps))
     chosen_fit = fit_effects(preps, search.chosen, surrogate, chain)
     reasons = screen_trials(preps)

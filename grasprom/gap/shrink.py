@@ -224,10 +224,8 @@ def trial_shrinks(
         One shrink per trial (1), NaN where the baseline's gap on the trial is not significant
         (there is nothing to shrink: the trial says nothing of the transfer).
     """
-    out = np.full(len(z_before), math.nan)
-    for i, (z0, z1, n0) in enumerate(zip(z_before, z_after, null)):
-        f0 = floor * z0.size
-        s0, s1 = float(z0 @ z0) - float(np.sum(n0)), float(z1 @ z1) - float(np.sum(n0))
-        if s0 > f0:
-            out[i] = 1.0 - math.sqrt(max(s1, 0.0) / s0)
-    return out
+    n0 = np.array([float(np.sum(n)) for n in null])
+    s0 = np.array([float(z @ z) for z in z_before]) - n0
+    s1 = np.array([float(z @ z) for z in z_after]) - n0
+    significant = s0 > floor * np.array([z.size for z in z_before])
+    return np.where(significant, _shrink(s0, s1), np.nan)
