@@ -13,6 +13,7 @@ the ``mkdocs build --strict`` command of README, run by ``tests/test_doc_command
 from __future__ import annotations
 
 import importlib.util
+import itertools
 import re
 from pathlib import Path
 
@@ -93,13 +94,15 @@ def test_every_docs_page_is_in_the_navigation():
     assert generated <= set(flat) and not generated & pages  # generated, never written by hand
 
 
-def _inline_commands() -> list[tuple[str, str]]:
-    """``(page, span)`` of every inline code span starting with ``grasprom `` in README and the
-    hand-written docs pages (fenced blocks excluded: tests/test_doc_commands.py runs those)."""
+def _inline_commands(prefix: str) -> list[tuple[str, str]]:
+    """``(page, span)`` of every inline code span starting with ``prefix`` (e.g. ``"grasprom
+    "``; returned without it) in README and the hand-written docs pages (fenced blocks
+    excluded: tests/test_doc_commands.py runs those)."""
     out = []
     for page in [README, *sorted((ROOT / "docs").glob("*.md"))]:
         text = re.sub(r"```.*?```", "", page.read_text(), flags=re.S)
-        out += [(page.name, m.group(1)) for m in re.finditer(r"`(grasprom [^`]+)`", text)]
+        pattern = rf"`{re.escape(prefix)}([^`]+)`"
+        out += [(page.name, m.group(1)) for m in re.finditer(pattern, text)]
     return out
 
 
@@ -110,23 +113,22 @@ def test_inline_commands_name_real_options_and_paste():
     from grasprom.cli import cli_help_pages
 
     helps = dict(cli_help_pages())
-    spans = _inline_commands()
+    spans = _inline_commands("grasprom ")
     assert len(spans) > 40  # the docs do name commands inline
     bad = []
     for page, span in spans:
-        words = span.split()
         if "[" in span or "..." in span:
             bad.append((page, span, "usage notation"))
             continue
-        for variant in {w for w in words[1:3] if "|" in w} or {""}:
-            names = [w for w in words if not w.startswith("-")]
-            for alt in variant.split("|") if variant else [""]:
-                cmd_words = [alt if w == variant else w for w in names]
-                cmd = max((c for c in helps if " ".join(cmd_words).startswith(c)), key=len)
-                for w in words:
-                    opt = w.split("=")[0]
-                    if opt.startswith("--") and not re.search(rf"{re.escape(opt)}\b", helps[cmd]):
-                        bad.append((page, span, f"{cmd} has no {opt}"))
+        words = span.split()
+        head = ["grasprom"] + [w for w in words if not w.startswith("-")][:2]
+        for cmd_words in itertools.product(*(w.split("|") for w in head)):  # a|b: each
+            joined = " ".join(cmd_words)
+            cmd = max((c for c in helps if joined.startswith(c)), key=len)
+            for w in words:
+                opt = w.split("=")[0]
+                if opt.startswith("--") and not re.search(rf"{re.escape(opt)}\b", helps[cmd]):
+                    bad.append((page, span, f"{cmd} has no {opt}"))
     assert not bad, bad
 
 
@@ -136,31 +138,26 @@ def test_inline_python_commands_name_real_files_and_options():
     defines (checked in its source: these are long runs; the benchmarks' own runs are in
     ``benchmarks/``), and a ``tests/...::name`` test exists."""
     bad = []
-    n = 0
-    for page in [README, *sorted((ROOT / "docs").glob("*.md"))]:
-        text = re.sub(r"```.*?```", "", page.read_text(), flags=re.S)
-        for m in re.finditer(r"`python ([^`]+)`", text):
-            n += 1
-            span = m.group(1)
-            if "[" in span or "..." in span:
-                bad.append((page.name, span, "usage notation"))
-                continue
-            words = span.split()
-            pytest_run = words[:2] == ["-m", "pytest"]
-            files = [w for w in words[2:] if "/" in w] if pytest_run else words[:1]
-            if not files:
-                continue  # `python -m pytest -q`: the whole suite
-            path, _, test = files[0].partition("::")
-            src = ROOT / path
-            if not src.exists():
-                bad.append((page.name, span, f"no file {path}"))
-                continue
-            if test and f"def {test}(" not in src.read_text():
-                bad.append((page.name, span, f"no test {test}"))
-            if not pytest_run:
-                code = src.read_text()
-                for w in words[1:]:
-                    if w.startswith("--") and f'"{w.split("=")[0]}"' not in code:
-                        bad.append((page.name, span, f"{path} has no {w}"))
-    assert n > 20
+    spans = _inline_commands("python ")
+    assert len(spans) > 20
+    for page, span in spans:
+        if "[" in span or "..." in span:
+            bad.append((page, span, "usage notation"))
+            continue
+        words = span.split()
+        pytest_run = words[:2] == ["-m", "pytest"]
+        files = [w for w in words[2:] if "/" in w] if pytest_run else words[:1]
+        if not files:
+            continue  # `python -m pytest -q`: the whole suite
+        path, _, test = files[0].partition("::")
+        src = ROOT / path
+        if not src.exists():
+            bad.append((page, span, f"no file {path}"))
+            continue
+        code = src.read_text()
+        if test and f"def {test}(" not in code:
+            bad.append((page, span, f"no test {test}"))
+        if not pytest_run:
+            bad += [(page, span, f"{path} has no {w}") for w in words[1:]
+                    if w.startswith("--") and f'"{w.split("=")[0]}"' not in code]  # fmt: skip
     assert not bad, bad
