@@ -372,32 +372,90 @@ def _enforce(st: _Setup, u, fixed, values, fr, h):
     return u
 
 
-def _frame(st: _Setup, u, fixed, fr, h):
-    """Newton frame: fixed mask in the rotated frame and the rotation ``Q`` (or None).
+@dataclass(frozen=True)
+class SlidingFrame:
+    """Newton frame of the frictionless (sliding) jaw nodes.
 
-    Frictionless nodes on the flat face have their ``y`` dof fixed; those on the rounded edge
-    get their ``(y, z)`` dofs rotated into (normal, tangent), the normal one fixed.
+    Parameters
+    ----------
+    fixed : ndarray of bool (ndof,)
+        Fixed dofs in the rotated frame.
+    Q : scipy.sparse.csr_matrix or None
+        Rotation from the frame to Cartesian dofs (``du = Q dv``); ``None`` if no node is on the
+        rounded edge.
+    tangential : ndarray of int
+        The rotated tangential dofs of the edge nodes (the ``z`` slot of each node).
+    normal : tuple of ndarray
+        Their outward jaw normals ``(ny, nz)``.
     """
-    fx = fixed.copy()
-    if fr.size == 0:
-        return fx, None
-    X = st.disc.X
-    _, _, _, ny, nz = st.jaw.project(X[fr, 1] + u[3 * fr + 1], X[fr, 2] + u[3 * fr + 2], h)
-    fx[3 * fr + 1] = True
-    rot = (nz != 0.0) & ~st.base_fixed[3 * fr + 2]
-    if not np.any(rot):
-        return fx, None
-    nodes, ny, nz = fr[rot], ny[rot], nz[rot]
-    iy, iz = 3 * nodes + 1, 3 * nodes + 2
-    keep = np.ones(st.disc.ndof, dtype=bool)
-    keep[iy] = False
-    keep[iz] = False
-    idx = np.flatnonzero(keep)
-    rows = np.concatenate([idx, iy, iy, iz, iz])
-    cols = np.concatenate([idx, iy, iz, iy, iz])
-    vals = np.concatenate([np.ones(idx.size), ny, -nz, nz, ny])
-    n = st.disc.ndof
-    return fx, sp.csr_matrix((vals, (rows, cols)), shape=(n, n))
+
+    fixed: np.ndarray
+    Q: sp.csr_matrix | None = None
+    tangential: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    normal: tuple = (np.zeros(0), np.zeros(0))
+
+    @classmethod
+    def on_jaw(cls, jaw: JawProfile, X, u, fixed, nodes, h: float, z_fixed=None):
+        """Frame of the sliding ``nodes`` on the jaw at height ``h`` (mm).
+
+        Nodes on the flat face have their ``y`` dof fixed; those on the rounded edge get their
+        ``(y, z)`` dofs rotated into (normal, tangent), the normal one fixed.  ``z_fixed``
+        (bool per node): nodes whose ``z`` is held by symmetry stay unrotated.
+        """
+        fx = fixed.copy()
+        if nodes.size == 0:
+            return cls(fx)
+        _, _, _, ny, nz = jaw.project(
+            X[nodes, 1] + u[3 * nodes + 1], X[nodes, 2] + u[3 * nodes + 2], h
+        )
+        fx[3 * nodes + 1] = True
+        rot = nz != 0.0
+        if z_fixed is not None:
+            rot &= ~z_fixed
+        if not np.any(rot):
+            return cls(fx)
+        nodes, ny, nz = nodes[rot], ny[rot], nz[rot]
+        iy, iz = 3 * nodes + 1, 3 * nodes + 2
+        n = fixed.size
+        keep = np.ones(n, dtype=bool)
+        keep[iy] = False
+        keep[iz] = False
+        idx = np.flatnonzero(keep)
+        rows = np.concatenate([idx, iy, iy, iz, iz])
+        cols = np.concatenate([idx, iy, iz, iy, iz])
+        vals = np.concatenate([np.ones(idx.size), ny, -nz, nz, ny])
+        Q = sp.csr_matrix((vals, (rows, cols)), shape=(n, n))
+        return cls(fx, Q, iz, (ny, nz))
+
+    def residual(self, f: np.ndarray) -> np.ndarray:
+        """The internal force ``f`` (N) in the frame, zero on the fixed dofs."""
+        r = f if self.Q is None else self.Q.T @ f
+        return np.where(self.fixed, 0.0, r)
+
+    def tangent(self, K: sp.csr_matrix, f: np.ndarray, radius: float) -> sp.csr_matrix:
+        """The tangent ``K`` (N/mm) in the frame, with the edge's curvature term.
+
+        A node sliding on the edge arc (radius ``r``, mm) under the normal reaction
+        ``lam = f . n`` (N) loses ``lam / r`` of tangential stiffness: with ``x(s)`` on the arc,
+        ``d2 Pi / ds2 = t.K.t + f.x''`` and ``x'' = -n / r``.  Without it Newton converges only
+        linearly while nodes slide over the edge.
+        """
+        if self.Q is None:
+            return K
+        Kr = (self.Q.T @ K @ self.Q).tocsr()
+        if radius <= 0:
+            return Kr
+        iz = self.tangential
+        ny, nz = self.normal
+        lam = f[iz - 1] * ny + f[iz] * nz
+        n = K.shape[0]
+        return (Kr - sp.csr_matrix((lam / radius, (iz, iz)), shape=(n, n))).tocsr()
+
+
+def _frame(st: _Setup, u, fixed, fr, h) -> SlidingFrame:
+    """Newton frame of the frictionless jaw nodes ``fr`` at the displacements ``u``."""
+    z_fixed = st.base_fixed[3 * fr + 2]
+    return SlidingFrame.on_jaw(st.jaw, st.disc.X, u, fixed, fr, h, z_fixed)
 
 
 def _constrained(st: _Setup, K: sp.csr_matrix, fixed: np.ndarray, rotated: bool):
@@ -447,9 +505,7 @@ def _line_search(st: _Setup, u, du, slope, rnorm, cons, h, amax: float = 1.0):
                 return ut, alpha
             if alpha == 1.0:
                 ft, _, _ = assemble(st.disc, st.material, ut, tangent=False)
-                fxt, Q = _frame(st, ut, fixed, fr, h)
-                rt = ft if Q is None else Q.T @ ft
-                if np.linalg.norm(np.where(fxt, 0.0, rt)) < 0.5 * rnorm:
+                if np.linalg.norm(_frame(st, ut, fixed, fr, h).residual(ft)) < 0.5 * rnorm:
                     return ut, alpha
         alpha *= 0.5
     raise _NewtonFailure("line search failed")
@@ -499,16 +555,15 @@ def _newton(st: _Setup, u, cons, h, c: _Contact):
         raise _NewtonFailure("inverted element at start of Newton")
     tol = st.settings.rtol * st.fscale
     for it in range(1, st.settings.max_newton + 1):
-        fx, Q = _frame(st, u, fixed, fr, h)
-        r = f if Q is None else Q.T @ f
-        r = np.where(fx, 0.0, r)
+        fr_ = _frame(st, u, fixed, fr, h)
+        r = fr_.residual(f)
         rnorm = np.linalg.norm(r)
         if rnorm <= tol:
             return u, f, K, it - 1, False
-        Kr = K if Q is None else (Q.T @ K @ Q).tocsr()
-        dv = _descent(st, _constrained(st, Kr, fx, Q is not None), r)
-        dv[fx] = 0.0
-        du = dv if Q is None else Q @ dv
+        Kr = fr_.tangent(K, f, st.jaw.r)
+        dv = _descent(st, _constrained(st, Kr, fr_.fixed, fr_.Q is not None), r)
+        dv[fr_.fixed] = 0.0
+        du = dv if fr_.Q is None else fr_.Q @ dv
         amax = _feasible_alpha(st, c, u, du, cons, h)
         event = amax < 1.0
         ut = _enforce(st, u + amax * du, fixed, values, fr, h) if event else None

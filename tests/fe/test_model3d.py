@@ -14,6 +14,7 @@ from grasprom.fe.model2d import CaseSpec, MeshSpec, SolverSettings, run_case
 from grasprom.fe.model3d import (
     CaseSpec3D,
     JawProfile,
+    SlidingFrame,
     assemble,
     energy,
     run_case_3d,
@@ -248,3 +249,53 @@ def test_small_deflection_jaw_stiffness_vs_semi_membrane_shell_theory():
     D = m.E * t**3 / (12 * (1 - m.nu**2))
     k_ring = 2 * D / ((np.pi / 4 - 2 / np.pi) * (0.5 * (30.0 - t)) ** 3) * spec.jaw_length_mm
     assert k_fe > 5 * k_ring
+
+
+@pytest.mark.parametrize("with_curvature", [True, False])
+def test_sliding_tangent_on_the_rounded_edge_matches_finite_differences(with_curvature):
+    """The frictionless frame's tangent = d(reduced force)/ds for a node sliding on the edge arc.
+
+    Independent reference: the force along the arc tangent, f(u(s)) . x'(s), differentiated by
+    central differences while the node moves exactly on the arc.  Without the curvature term
+    ``lam / r`` the tangent misses it by exactly that amount (the case that is checked to fail).
+    """
+    R, t, r, a = 15.0, 1.4, 1.0, 2.0
+    z = axial_nodes(6.0, 6.0, 3, 0)
+    disc = discretise3d(R, t, z, MeshSpec3D(n_layers=1, n_circ=3))
+    mat = get_material("mr")
+    jaw = JawProfile(a, r)
+    rng = np.random.default_rng(3)
+    u = 0.01 * rng.standard_normal(disc.ndof)
+    # one outer node on the top line, put on the arc at angle phi (n = (-cos phi, sin phi))
+    top = disc.outer_nodes[np.isclose(disc.X[disc.outer_nodes, 0], 0.0)]
+    node = top[np.argmin(abs(disc.X[top, 2] - (a + 0.5 * r)))]
+    h = R - 0.3
+
+    def place(u, phi):
+        v = u.copy()
+        v[3 * node + 1] = h + r - r * np.cos(phi) - disc.X[node, 1]
+        v[3 * node + 2] = a + r * np.sin(phi) - disc.X[node, 2]
+        return v
+
+    phi = 0.6
+    nodes = np.array([node])
+    fixed = np.zeros(disc.ndof, dtype=bool)
+    fr = SlidingFrame.on_jaw(jaw, disc.X, place(u, phi), fixed, nodes, h)
+    assert fr.Q is not None and fr.tangential.tolist() == [3 * node + 2]
+    f, K, _ = assemble(disc, mat, place(u, phi))
+    lam = f[3 * node + 1] * -np.cos(phi) + f[3 * node + 2] * np.sin(phi)
+    assert abs(lam) > 1e-3  # a real normal force, so the curvature term is visible
+    Kr = fr.tangent(K, f, r if with_curvature else 0.0)
+
+    def tangential_force(s):  # frame dof (-nz, ny): ds > 0 moves phi by -ds / r
+        ps = phi - s / r
+        fs = assemble(disc, mat, place(u, ps), tangent=False)[0]
+        return -fs[3 * node + 1] * np.sin(ps) - fs[3 * node + 2] * np.cos(ps)
+
+    eps = 1e-5
+    fd = (tangential_force(eps) - tangential_force(-eps)) / (2 * eps)
+    iz = 3 * node + 2
+    if with_curvature:
+        assert Kr[iz, iz] == pytest.approx(fd, rel=1e-5)
+    else:
+        assert Kr[iz, iz] - fd == pytest.approx(lam / r, rel=1e-4)

@@ -1,0 +1,33 @@
+"""The 3D tube mesh (grasprom.fe.mesh3d): walls found on coarse and default meshes."""
+
+import numpy as np
+import pytest
+
+from grasprom.fe.mesh3d import MeshSpec3D, axial_nodes, discretise3d
+from grasprom.fe.model2d import graded_fractions
+
+
+@pytest.mark.parametrize("n_circ, n_layers", [(3, 1), (6, 1), (12, 2)])
+def test_outer_and_inner_walls_cover_the_quarter_and_their_area(n_circ, n_layers):
+    """Every wall facet is found, however coarse the circumferential elements.
+
+    References: the quarter circumference at both radii spans x = 0..R (top and side), the
+    vertex nodes of the outer wall lie on r = R, and the consistent nodal areas add up to the
+    faceted outer surface, (pi / 2) R L x chord / arc.
+    """
+    R, t, L = 15.0, 1.4, 6.0
+    mesh = MeshSpec3D(n_layers=n_layers, n_circ=n_circ)
+    d = discretise3d(R, t, axial_nodes(L, L, 3, 0), mesh)
+    Xo, Xi = d.X[d.outer_nodes], d.X[d.inner_nodes]
+    assert Xo[:, 0].min() == pytest.approx(0.0, abs=1e-12)
+    assert Xo[:, 0].max() == pytest.approx(R)
+    assert Xi[:, 0].min() == pytest.approx(0.0, abs=1e-12)
+    n_z = 2 * 3 + 1
+    assert d.outer_nodes.size == (2 * n_circ + 1) * n_z
+    assert d.inner_nodes.size == 2 * n_circ * n_z  # the node on y = 0 belongs to the floor
+    ro = np.hypot(Xo[:, 0], Xo[:, 1])
+    assert ro.max() == pytest.approx(R)
+    # faceted area: each element's chord instead of its arc
+    dth = 0.5 * np.pi * np.diff(graded_fractions(n_circ, mesh.grading))
+    chord = (2 * R * np.sin(0.5 * dth)).sum()
+    assert d.outer_area.sum() == pytest.approx(chord * L, rel=1e-10)
