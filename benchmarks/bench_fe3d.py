@@ -4,6 +4,7 @@ Sections (run all, or name some on the command line)::
 
     python benchmarks/bench_fe3d.py default       # default case: wall time, dofs, 3D/2D ratio
     python benchmarks/bench_fe3d.py cases         # t 0.8/1.4/2.0 x mr/le, stick and frictionless
+    python benchmarks/bench_fe3d.py cases --materials mr --thickness 0.8 --json out.json
     python benchmarks/bench_fe3d.py contact       # stick vs frictionless at fixed gaps
     python benchmarks/bench_fe3d.py length        # tube-length convergence (L, 2L)
     python benchmarks/bench_fe3d.py mesh          # mesh convergence at fixed gaps
@@ -282,12 +283,40 @@ SECTIONS = {
 
 
 def main(argv: list[str]) -> None:
-    names = argv or list(SECTIONS)
+    import argparse
+
+    ap = argparse.ArgumentParser(
+        description="Benchmarks of the 3D clamping model; prints figures, asserts nothing.",
+        epilog="sections: " + ", ".join(SECTIONS),
+    )
+    ap.add_argument("sections", nargs="*", help="sections to run (default: all)")
+    ap.add_argument(
+        "--materials", default="mr,le", help="'cases' section: materials (default mr,le)"
+    )
+    ap.add_argument(
+        "--thickness",
+        default="0.8,1.4,2.0",
+        help="'cases' section: wall thicknesses in mm (default 0.8,1.4,2.0)",
+    )
+    ap.add_argument("--json", help="write the figures as JSON here")
+    args = ap.parse_args(argv)
+    unknown = [n for n in args.sections if n not in SECTIONS]
+    if unknown:
+        ap.error(f"unknown section(s) {', '.join(unknown)}; valid: {', '.join(SECTIONS)}")
     results = {}
-    for name in names:
+    for name in args.sections or list(SECTIONS):
         print(f"== {name}: {SECTIONS[name].__doc__.splitlines()[0]}", flush=True)
-        results[name] = SECTIONS[name]()
-    print(json.dumps(results, default=str)[:2000])
+        if name == "cases":
+            mats = tuple(args.materials.split(","))
+            ts = tuple(float(x) for x in args.thickness.split(","))
+            results[name] = bench_cases(ts, mats)
+        else:
+            results[name] = SECTIONS[name]()
+    text = json.dumps(results, default=str)
+    if args.json:
+        with open(args.json, "w") as fh:
+            fh.write(text)
+    print(text[:2000])
 
 
 if __name__ == "__main__":
