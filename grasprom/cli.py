@@ -230,7 +230,7 @@ def _add_model_options(s: argparse.ArgumentParser) -> None:
         choices=("stick", "frictionless", "coulomb"),
         default=None,
         help="jaw contact: stick (no sliding, Guachi et al. 2020; 3d default), frictionless (2d "
-        "default) or coulomb (2d only, needs --friction: stuck until the tangential force passes "
+        "default) or coulomb (needs --friction: stuck until the tangential force passes "
         "MU x the normal force, then sliding against MU x the normal force)",
     )
     s.add_argument(

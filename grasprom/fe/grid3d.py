@@ -30,13 +30,14 @@ MODELS = ("2d", "3d")
 """FE models of a sweep (``--model``)."""
 
 CONTACT_LAWS = ("stick", "frictionless", "coulomb")
-"""Contact laws of ``--contact`` (``coulomb``: 2D only, with ``--friction``)."""
+"""Contact laws of ``--contact`` (``coulomb`` needs ``--friction``)."""
 
 ENDS = ("seed", "free")
 """End conditions of the 3D tube (``--ends``)."""
 
 MIN_CIRC_3D = 6
-"""Fewest divisions along the quarter circumference a 3D case accepts (4 misses the contact)."""
+"""Fewest divisions along the quarter circumference a 3D case accepts (a guard: with fewer,
+one graded element spans more than about 20 degrees of the ring)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -96,14 +97,9 @@ def check_options(
 
 
 def _check_friction(model: str, opts: Model3DOptions) -> None:
-    """``--contact coulomb`` needs ``--friction MU`` > 0 and the 2D model; MU needs coulomb."""
+    """``--contact coulomb`` needs ``--friction MU`` > 0 (both models); MU needs coulomb."""
     mu = opts.friction
     if opts.contact == "coulomb":
-        if model == "3d":
-            raise SweepInputError(
-                "--contact coulomb: 2D only for now (--model 2d); the 3D model has stick "
-                "(no sliding, its default) and frictionless"
-            )
         if mu is None:
             raise SweepInputError("--contact coulomb: needs --friction MU (a coefficient > 0)")
     if mu is not None:
@@ -154,10 +150,11 @@ def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, int]) -
     if mesh.get("n_circ", MIN_CIRC_3D) < MIN_CIRC_3D:
         raise SweepInputError(
             f"--n-circ: the 3D model needs at least {MIN_CIRC_3D} divisions along the quarter "
-            f"circumference (coarser meshes miss the jaw contact), got {mesh['n_circ']}"
+            f"circumference (coarser meshes put more than about 20 degrees of the ring in one "
+            f"element), got {mesh['n_circ']}"
         )
     extra = {k: v for k, v in dataclasses.asdict(opts).items() if v is not None}
-    extra.pop("friction", None)
+    extra["friction"] = float(opts.friction) if opts.contact == "coulomb" else 0.0
     mesh3d = MeshSpec3D(**dict(mesh))
     out = []
     for s in specs:

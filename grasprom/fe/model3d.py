@@ -43,7 +43,12 @@ from grasprom.fe.mesh3d import Disc3D, MeshSpec3D, axial_nodes, discretise3d
 from grasprom.fe.model2d import COLUMN_DESCRIPTIONS, COLUMNS, CaseResult, SolverSettings
 
 ENDS = ("free", "seed")
-CONTACTS = ("stick", "frictionless")
+CONTACTS = ("stick", "frictionless", "coulomb")
+
+FRICTION_EPS_MM = 1e-3
+"""Stick regularisation of ``contact="coulomb"`` (mm): a node in contact creeps by up to about
+this before its friction force reaches ``mu N`` (as the 2D model's
+:data:`grasprom.fe.model2d.FRICTION_EPS_MM`)."""
 
 #: extra 3D columns appended after the 2D :data:`COLUMNS`
 EXTRA_COLUMNS_3D = ("contact_area_mm2", "contact_length_mm", "tangential_share")
@@ -85,11 +90,11 @@ class CaseSpec3D:
         ``"free"`` (default) or ``"seed"`` (``u_x = u_y = 0`` at ``z = L/2``, Guachi et al.'s edge
         condition; it clamps the ovalisation at the end, so the force depends on ``L``).
     contact : str
-        ``"stick"`` (default, Guachi et al.'s no sliding) or ``"frictionless"`` (slower: the
-        rounded jaw edge needs more active-set passes).
+        ``"stick"`` (default, Guachi et al.'s no sliding), ``"frictionless"`` or ``"coulomb"``
+        (stuck until the tangential reaction reaches ``friction`` times the normal one, then
+        sliding against it; regularised as the 2D model's, :data:`FRICTION_EPS_MM`).
     friction : float
-        Coulomb coefficient (unused: Coulomb contact is 2D only,
-        :class:`grasprom.fe.model2d.CaseSpec`).
+        Coulomb coefficient (-), only with ``contact="coulomb"`` (> 0 there, 0 otherwise).
     jaw_edge_radius_mm : float
         Radius (mm) rounding off the jaw's edges at ``|z| = jaw_length/2``.
     plane_strain : bool
@@ -296,14 +301,20 @@ class JawProfile:
 
 @dataclass
 class _Contact:
-    """Contact state: active jaw nodes (over ``disc.outer_nodes``), stick anchors, floor."""
+    """Contact state: active jaw nodes (over ``disc.outer_nodes``), stick anchors, floor;
+    ``normal``: the jaw's normal reaction (N) at each outer node in the last solution (the
+    lagged normal force of Coulomb friction)."""
 
     jaw_active: np.ndarray
-    anchor: np.ndarray  # (n_outer, 3): x, y - h, z of the stick point
+    anchor: np.ndarray  # (n_outer, 3): x, y - h, z of the stick point / friction anchor
     floor_active: np.ndarray
+    normal: np.ndarray | None = None
 
     def copy(self) -> _Contact:
-        return _Contact(self.jaw_active.copy(), self.anchor.copy(), self.floor_active.copy())
+        normal = None if self.normal is None else self.normal.copy()
+        return _Contact(
+            self.jaw_active.copy(), self.anchor.copy(), self.floor_active.copy(), normal
+        )
 
 
 @dataclass(frozen=True)
@@ -319,6 +330,84 @@ class _Setup:
     fscale: float
     solver: str
     disc_thickness: float
+    mu: float = np.inf  # Coulomb coefficient (finite: contact="coulomb")
+
+
+@dataclass(frozen=True)
+class _Friction:
+    """Regularised Coulomb friction of the sliding jaw nodes during one pass (internal).
+
+    Each node in contact with a normal force ``N`` (lagged: the previous solve's) is held at
+    its anchor ``a`` by ``c (sqrt(|d|^2 + e^2) - e)``, ``d = x - a`` (3-vector, mm), ``c = mu
+    N``, ``e`` = :data:`FRICTION_EPS_MM`: stiff (``c / e``) about ``d = 0`` (stick), a force
+    tending to ``c`` (sliding); smooth and convex, so Newton with the energy line search
+    handles stick and slip without an active set, as the 2D model's friction.  On the flat face
+    ``d`` is tangential (the node's normal position is prescribed); on the edge arc it is the
+    chord, whose normal part is second order in the slide.
+    """
+
+    nodes: np.ndarray  # outer nodes with friction
+    anchor: np.ndarray  # (n, 3) absolute anchor positions (mm)
+    c: np.ndarray  # mu N (N)
+    eps: float = FRICTION_EPS_MM
+
+    @classmethod
+    def of(cls, st: _Setup, c: _Contact, h: float) -> _Friction | None:
+        """The friction of the contact state ``c`` at jaw height ``h`` (None: no friction)."""
+        if not np.isfinite(st.mu) or c.normal is None:
+            return None
+        sel = c.jaw_active & (c.normal > 0)
+        if not np.any(sel):
+            return None
+        on = st.disc.outer_nodes[sel]
+        anchor = c.anchor[sel] + np.array([0.0, h, 0.0])
+        return cls(on, anchor, st.mu * c.normal[sel])
+
+    def _slide(self, X, u):
+        d = X[self.nodes] + u.reshape(-1, 3)[self.nodes] - self.anchor
+        return d, np.sqrt((d * d).sum(axis=1) + self.eps**2)
+
+    def energy(self, X, u) -> float:
+        """Friction potential (N mm)."""
+        _, r = self._slide(X, u)
+        return float((self.c * (r - self.eps)).sum())
+
+    def force(self, X, u) -> np.ndarray:
+        """Its gradient (N) over all dofs."""
+        d, r = self._slide(X, u)
+        out = np.zeros(u.size)
+        idx = 3 * self.nodes[:, None] + np.arange(3)
+        out[idx] = (self.c / r)[:, None] * d
+        return out
+
+    def tangent(self, X, u) -> sp.csr_matrix:
+        """Its Hessian (N/mm): ``c (I / r - d d^T / r^3)`` per node."""
+        d, r = self._slide(X, u)
+        blk = (self.c / r)[:, None, None] * (
+            np.eye(3) - d[:, :, None] * d[:, None, :] / (r * r)[:, None, None]
+        )
+        idx = 3 * self.nodes[:, None] + np.arange(3)
+        rows = np.repeat(idx, 3, axis=1).ravel()
+        cols = np.tile(idx, (1, 3)).ravel()
+        n = u.size
+        return sp.csr_matrix((blk.ravel(), (rows, cols)), shape=(n, n))
+
+
+def _assemble_x(st: _Setup, u, fric: _Friction | None, tangent: bool = True):
+    """Internal force plus friction force (N) and tangent (N/mm); ``(None, None)`` if inverted."""
+    f, K, _ = assemble(st.disc, st.material, u, tangent)
+    if f is None or fric is None:
+        return f, K
+    f = f + fric.force(st.disc.X, u)
+    if K is not None:
+        K = (K + fric.tangent(st.disc.X, u)).tocsr()
+    return f, K
+
+
+def _energy_x(st: _Setup, u, fric: _Friction | None) -> float:
+    """Strain energy plus the friction potential (N mm)."""
+    e = energy(st.disc, st.material, u)
+    return e if fric is None or not np.isfinite(e) else e + fric.energy(st.disc.X, u)
 
 
 def _base_fixed(disc: Disc3D, ends: str, plane_strain: bool) -> np.ndarray:
@@ -489,22 +578,22 @@ def _descent(st: _Setup, Kc: sp.csr_matrix, r: np.ndarray) -> np.ndarray:
     raise _NewtonFailure("no descent direction")
 
 
-def _line_search(st: _Setup, u, du, slope, rnorm, cons, h, amax: float = 1.0):
+def _line_search(st: _Setup, u, du, slope, rnorm, cons, h, amax: float = 1.0, fric=None):
     """Energy line search along ``du`` (projected on the constraints) from ``alpha = amax``.
 
     Returns the new displacements and the accepted step length.
     """
     fixed, values, fr = cons
-    e0 = energy(st.disc, st.material, u)
+    e0 = _energy_x(st, u, fric)
     alpha = amax
     for _ in range(12):
         ut = _enforce(st, u + alpha * du, fixed, values, fr, h)
-        et = energy(st.disc, st.material, ut)
+        et = _energy_x(st, ut, fric)
         if np.isfinite(et):
             if et <= e0 + 1e-4 * alpha * slope:
                 return ut, alpha
             if alpha == 1.0:
-                ft, _, _ = assemble(st.disc, st.material, ut, tangent=False)
+                ft, _ = _assemble_x(st, ut, fric, tangent=False)
                 if np.linalg.norm(_frame(st, ut, fixed, fr, h).residual(ft)) < 0.5 * rnorm:
                     return ut, alpha
         alpha *= 0.5
@@ -547,25 +636,31 @@ def _feasible_alpha(st: _Setup, c: _Contact, u, du, cons, h) -> float:
 ACTIVE_SET_RTOL = 1e-4
 
 
-def _newton(st: _Setup, u, cons, h, c: _Contact, rtol: float | None = None):
+def _newton(st: _Setup, u, cons, h, c: _Contact, rtol: float | None = None, fric=None):
     """Newton-Raphson on the free dofs; returns ``(u, f, K, iterations, contact_event)``.
 
     Converges to ``rtol`` (default ``SolverSettings.rtol``) times the force scale (N).  A step
     that would push inactive nodes deeper than ``0.02 t`` into the jaw or the floor is cut at
-    the touch and the solve returns early (``contact_event``) for the active set.
+    the touch and the solve returns early (``contact_event``) for the active set.  ``fric``
+    (:class:`_Friction`) adds the friction potential; ``f`` returned is the internal force
+    without it (at a node in contact: the jaw's reaction), ``K`` the tangent with it.
     """
     fixed, values, fr = cons
     u = _enforce(st, u, fixed, values, fr, h)
-    f, K, _ = assemble(st.disc, st.material, u)
+    f, K = _assemble_x(st, u, fric)
     if f is None:
         raise _NewtonFailure("inverted element at start of Newton")
     tol = (st.settings.rtol if rtol is None else rtol) * st.fscale
+
+    def internal(f, u):
+        return f if fric is None else f - fric.force(st.disc.X, u)
+
     for it in range(1, st.settings.max_newton + 1):
         fr_ = _frame(st, u, fixed, fr, h)
         r = fr_.residual(f)
         rnorm = np.linalg.norm(r)
         if rnorm <= tol:
-            return u, f, K, it - 1, False
+            return u, internal(f, u), K, it - 1, False
         Kr = fr_.tangent(K, f, st.jaw.r)
         dv = _descent(st, _constrained(st, Kr, fr_.fixed, fr_.Q is not None), r)
         dv[fr_.fixed] = 0.0
@@ -574,14 +669,14 @@ def _newton(st: _Setup, u, cons, h, c: _Contact, rtol: float | None = None):
         event = amax < 1.0
         ut = _enforce(st, u + amax * du, fixed, values, fr, h) if event else None
         if ut is None or not np.isfinite(energy(st.disc, st.material, ut)):
-            ut, alpha = _line_search(st, u, du, r @ dv, rnorm, cons, h, amax)
+            ut, alpha = _line_search(st, u, du, r @ dv, rnorm, cons, h, amax, fric)
             event = event and alpha == amax
         u = ut
-        f, K, _ = assemble(st.disc, st.material, u)
+        f, K = _assemble_x(st, u, fric)
         if f is None:
             raise _NewtonFailure("inverted element")
         if event:
-            return u, f, K, it, True
+            return u, internal(f, u), K, it, True
     raise _NewtonFailure("Newton did not converge")
 
 
@@ -631,30 +726,72 @@ def _update_active(st: _Setup, c: _Contact, u, f, h, add_only: bool = False):
     return new, same and np.array_equal(new.floor_active, c.floor_active)
 
 
+#: the lagged normal force of Coulomb friction has settled when no node's moved by more than
+#: this share of the largest (as the 2D model)
+FRICTION_NORMAL_RTOL = 1e-5
+
+
+def _normal_forces(st: _Setup, c: _Contact, u, f, h) -> np.ndarray:
+    """The jaw's normal reaction (N, >= 0) at each outer node in contact, 0 elsewhere."""
+    on = st.disc.outer_nodes
+    ny, nz = _jaw_normals(st, c, u, h)
+    lam = f[3 * on + 1] * ny + f[3 * on + 2] * nz
+    return np.where(c.jaw_active, np.maximum(lam, 0.0), 0.0)
+
+
+def _slide_anchors(st: _Setup, c: _Contact, u, h) -> np.ndarray:
+    """Friction anchors for the next step: moved by the slide beyond the stick creep."""
+    on = st.disc.outer_nodes
+    x = st.disc.X[on] + u.reshape(-1, 3)[on] - np.array([0.0, h, 0.0])
+    d = x - c.anchor
+    n = np.linalg.norm(d, axis=1)
+    scale = np.where(n > FRICTION_EPS_MM, FRICTION_EPS_MM / np.maximum(n, 1e-300), 1.0)
+    out = c.anchor.copy()
+    act = c.jaw_active
+    out[act] = (x - d * scale[:, None])[act]
+    return out
+
+
 def _solve_step(st: _Setup, u, K_old, c: _Contact, h: float):
     """Equilibrium at jaw height ``h`` (mm) with the active-set loop.
 
     Inexact passes: while the active set changes, Newton stops at ``ACTIVE_SET_RTOL``; once a
     pass leaves the set unchanged, the same set is solved to ``SolverSettings.rtol`` and
     checked again, so the returned state is as exact as with full solves in every pass.
+    Coulomb contact: the friction's normal force is that of the previous pass, and the step is
+    re-solved until it settles (:data:`FRICTION_NORMAL_RTOL`); then the anchors follow the
+    slide.
     """
     iters = 0
     loose = max(ACTIVE_SET_RTOL, st.settings.rtol)
     exact = False
+    coulomb = np.isfinite(st.mu)
+    if coulomb and c.normal is None:
+        c = c.copy()
+        c.normal = np.zeros(c.jaw_active.size)
     for _ in range(st.settings.max_active_set):
         fixed, values, fr = _targets(st, c, h, u)
         jump = _enforce(st, u, fixed, values, fr, h) - u
         if K_old is not None and np.any(jump != 0.0):
             u = _predict(st, u, K_old, fixed, jump)
-        u, f, K, it, event = _newton(st, u, (fixed, values, fr), h, c, None if exact else loose)
+        fric = _Friction.of(st, c, h)
+        cons = (fixed, values, fr)
+        u, f, K, it, event = _newton(st, u, cons, h, c, None if exact else loose, fric)
         iters += it
         K_old = K
         new, settled = _update_active(st, c, u, f, h, add_only=event)
+        if coulomb and not event:
+            lam = _normal_forces(st, c, u, f, h)
+            scale = max(float(lam.max(initial=0.0)), 1e-12)
+            moved = np.abs(lam - c.normal)[c.jaw_active].max(initial=0.0)
+            new.normal = np.where(new.jaw_active, lam, 0.0)
+            settled = settled and moved <= FRICTION_NORMAL_RTOL * scale
         if settled and not event:
             if exact:
-                return u, f, K, c, iters
+                if coulomb:
+                    new.anchor = _slide_anchors(st, new, u, h)
+                return u, f, K, new, iters
             exact = True
-            continue
         c = new
     raise _NewtonFailure("active set did not settle")
 
@@ -726,6 +863,7 @@ def _setup(spec: CaseSpec3D, solver: str) -> _Setup:
         material=material,
         jaw=jaw,
         stick=spec.contact == "stick",
+        mu=float(spec.friction) if spec.contact == "coulomb" else np.inf,
         base_fixed=_base_fixed(disc, spec.ends, spec.plane_strain),
         settings=spec.solver,
         fscale=material.mu * t * t,
@@ -895,6 +1033,11 @@ def _validate_spec(spec: CaseSpec3D) -> None:
         raise ValueError(f"unknown ends {spec.ends!r}; valid: {', '.join(ENDS)}")
     if spec.contact not in CONTACTS:
         raise ValueError(f"unknown contact {spec.contact!r}; valid: {', '.join(CONTACTS)}")
+    mu = spec.friction
+    if spec.contact == "coulomb" and not (np.isfinite(mu) and mu > 0):
+        raise ValueError(f"invalid friction={mu!r}: contact='coulomb' needs a coefficient > 0")
+    if spec.contact != "coulomb" and mu != 0:
+        raise ValueError(f"invalid friction={mu!r}: only used with contact='coulomb'")
     if spec.plane_strain and spec.flat_half_length_mm < 0.5 * spec.tube_length_mm:
         raise ValueError("plane_strain needs a flat jaw at least as long as the tube")
 

@@ -323,3 +323,32 @@ def test_inexact_active_set_passes_reach_the_same_frictionless_equilibrium(monke
     for g in gaps:
         assert _at(inexact.table, g) == pytest.approx(_at(exact.table, g), rel=1e-7)
     assert inexact.info["newton_iterations"] < exact.info["newton_iterations"]
+
+
+def test_coulomb_3d_spans_frictionless_to_stick():
+    """Coulomb contact in 3D, bracketed by its limits (as the 2D model's checks).
+
+    ``mu = 1e-6`` is frictionless to 1e-6; ``mu = 5`` (above the stick solution's largest
+    tangential share) is stick within 1 % (the 1 um regularisation lets first contacts creep);
+    ``mu = 0.2`` lies between the two at every gap and its tangential share never exceeds 0.2
+    (the contact slides at the edge of the contact patch).
+    """
+    gaps = (27.0, 24.0)
+    mesh = MeshSpec3D(n_layers=1, n_circ=8, n_jaw=3, n_free=3)
+    f, share = {}, {}
+    for contact, mu in [("frictionless", 0.0), ("stick", 0.0), ("coulomb", 1e-6),
+                        ("coulomb", 0.2), ("coulomb", 5.0)]:  # fmt: skip
+        spec = CaseSpec3D("mr", 1.4, tube_length_mm=30.0, contact=contact, friction=mu,
+                          closed_gap_mm=24.0, mesh=mesh)  # fmt: skip
+        r = run_case_3d(replace(spec, solver=replace(spec.solver, land_on_gaps_mm=gaps)))
+        assert r.status == "complete"
+        f[(contact, mu)] = np.array([_at(r.table, g) for g in gaps])
+        share[(contact, mu)] = float(r.table["tangential_share"].max())
+    lo, hi = f[("frictionless", 0.0)], f[("stick", 0.0)]
+    assert np.all(hi > lo * (1 + 1e-3))  # the two limits differ enough to bracket
+    np.testing.assert_allclose(f[("coulomb", 1e-6)], lo, rtol=1e-6)
+    np.testing.assert_allclose(f[("coulomb", 5.0)], hi, rtol=0.01)
+    assert np.all(lo * (1 - 1e-6) <= f[("coulomb", 0.2)])
+    assert np.all(f[("coulomb", 0.2)] <= hi * (1 + 1e-6))
+    assert 0.1 < share[("coulomb", 0.2)] <= 0.2 * (1 + 1e-9)
+    assert share[("stick", 0.0)] > 0.2

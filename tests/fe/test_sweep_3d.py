@@ -72,6 +72,16 @@ def test_2d_sweep_with_coulomb_contact_records_the_coefficient(tmp_path):
     assert 0 < share.max() <= 0.2 * (1 + 1e-9)
 
 
+def test_3d_sweep_with_coulomb_contact_records_the_coefficient(tmp_path):
+    out = tmp_path / "coulomb3d"
+    extra = ["--model", "3d", *COARSE]
+    assert _sweep(out, "--contact", "coulomb", "--friction", "0.2", *extra) == 0
+    meta = json.loads((out / "mr_t1.40.json").read_text())
+    assert meta["model"] == "3d" and meta["contact"] == "coulomb" and meta["friction"] == 0.2
+    share = pd.read_csv(out / "mr_t1.40.csv")["tangential_share"]
+    assert 0 < share.max() <= 0.2 * (1 + 1e-9)
+
+
 @pytest.mark.parametrize(
     "extra, needle",
     [
@@ -81,7 +91,7 @@ def test_2d_sweep_with_coulomb_contact_records_the_coefficient(tmp_path):
         (["--contact", "coulomb", "--friction", "0"], "--friction: must be a coefficient"),
         (["--contact", "coulomb", "--friction", "nan"], "--friction: must be a coefficient"),
         (["--contact", "stick", "--friction", "0.3"], "only used with --contact coulomb"),
-        (["--model", "3d", "--contact", "coulomb", "--friction", "0.3"], "2D only"),
+        (["--model", "3d", "--contact", "coulomb"], "needs --friction"),
         (["--model", "3d", "--friction", "0.3"], "--friction"),
         (["--model", "3d", "--tube-length", "-5"], "--tube-length"),
         (["--model", "3d", "--n-circ", "4"], "--n-circ"),
