@@ -6,6 +6,7 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py cases         # t 0.8/1.4/2.0 x mr/le, stick and frictionless
     python benchmarks/bench_fe3d.py cases --materials mr --thickness 0.8 --json out.json
     python benchmarks/bench_fe3d.py contact       # stick vs frictionless at fixed gaps
+    python benchmarks/bench_fe3d.py laws          # frictionless, coulomb 0.1/0.3/1, stick to gap 5
     python benchmarks/bench_fe3d.py length        # tube-length convergence (L, 2L)
     python benchmarks/bench_fe3d.py mesh          # mesh convergence at fixed gaps
     python benchmarks/bench_fe3d.py planestrain   # plane-strain 3D vs the 2D model, full stroke
@@ -104,6 +105,28 @@ def bench_contact() -> dict:
     _print_row("stick / 2D", {g: fs[g] / f2[g] for g in GAPS}, "{:9.3f}")
     _print_row("frictionless / 2D", {g: ff[g] / f2[g] for g in GAPS}, "{:9.3f}")
     return {"stick": fs, "frictionless": ff, "2d": f2}
+
+
+def bench_laws(closed_gap: float = 5.0) -> dict:
+    """Contact laws in 3D (mr, t = 1.4, default mesh) to gap 5 mm: force, share, cost."""
+    gaps = (20.0, 10.0, 5.0)
+    laws = [("frictionless", 0.0), ("coulomb", 0.1), ("coulomb", 0.3), ("coulomb", 1.0)]
+    out = {}
+    for contact, mu in [*laws, ("stick", 0.0)]:
+        spec = CaseSpec3D("mr", T, contact=contact, friction=mu, closed_gap_mm=closed_gap)
+        r = _run(_with_gaps(spec, gaps), f"{contact} {mu:g}")
+        f = _force_at(r.table, gaps)
+        out[f"{contact} {mu:g}"] = {
+            **{f"F@{g:g}": f[g] for g in gaps},
+            "max_share": float(r.table["tangential_share"].max()),
+            "steps": r.info["steps"],
+            "newton": r.info["newton_iterations"],
+            "wall_s": r.info["wall_time_s"],
+        }
+    print("  " + " | ".join(["law", *next(iter(out.values()))]))
+    for k, v in out.items():
+        print("  " + " | ".join([k, *(f"{x:.4g}" for x in v.values())]), flush=True)
+    return out
 
 
 CASE_GAPS = (20.0, 10.0, 5.0)
@@ -276,6 +299,7 @@ SECTIONS = {
     "default": bench_default,
     "cases": bench_cases,
     "contact": bench_contact,
+    "laws": bench_laws,
     "length": bench_length,
     "mesh": bench_mesh,
     "planestrain": bench_planestrain,

@@ -48,7 +48,7 @@ class Model3DOptions:
     ----------
     contact : str or None
         ``stick`` (no sliding once in contact, Guachi et al.'s assumption), ``frictionless`` or
-        ``coulomb`` (2D only).
+        ``coulomb`` (with ``friction``).
     friction : float or None
         Coulomb coefficient (-), required with ``coulomb`` and only used there.
     tube_length_mm : float or None
