@@ -7,6 +7,7 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py cases --materials mr --thickness 0.8 --json out.json
     python benchmarks/bench_fe3d.py contact       # stick vs frictionless at fixed gaps
     python benchmarks/bench_fe3d.py laws          # frictionless, coulomb 0.1/0.3/1, stick to gap 5
+    python benchmarks/bench_fe3d.py crease        # crease band: default vs small steps, dense
     python benchmarks/bench_fe3d.py length        # tube-length convergence (L, 2L)
     python benchmarks/bench_fe3d.py mesh          # mesh convergence at fixed gaps
     python benchmarks/bench_fe3d.py planestrain   # plane-strain 3D vs the 2D model, full stroke
@@ -105,6 +106,37 @@ def bench_contact() -> dict:
     _print_row("stick / 2D", {g: fs[g] / f2[g] for g in GAPS}, "{:9.3f}")
     _print_row("frictionless / 2D", {g: ff[g] / f2[g] for g in GAPS}, "{:9.3f}")
     return {"stick": fs, "frictionless": ff, "2d": f2}
+
+
+def bench_crease(tube_length: float = 60.0) -> dict:
+    """Crease band (2t..4t) of the 3D stick case: default steps vs small steps, dense, with and
+    without the crease placed by energy (mr, t = 1.4, the default cross-section, 60 mm tube)."""
+    base = CaseSpec3D("mr", T, tube_length_mm=tube_length, closed_gap_mm=2.6)
+    base = replace(base, mesh=replace(base.mesh, n_free=3))
+    small = {"dh_max_mm": 0.25, "max_rel_force_step": 0.1}
+    grid = np.linspace(2 * T + 0.05, 4 * T + 1.0, 400)
+    out, curves = {}, {}
+    for maxwell in (False, True):
+        for label, kw in (("default steps", {}), ("small steps", small)):
+            solver = replace(base.solver, maxwell_crease=maxwell, **kw)
+            r = _run(replace(base, solver=solver), f"maxwell={maxwell} {label}")
+            t = r.table
+            logf = np.log(np.maximum(t["force_N"].to_numpy(), 1e-12))
+            curves[(maxwell, label)] = np.exp(np.interp(-grid, -t["gap_mm"].to_numpy(), logf))
+            out[f"maxwell={maxwell} {label} wall_s"] = r.info["wall_time_s"]
+        rel = curves[(maxwell, "default steps")] / curves[(maxwell, "small steps")] - 1
+        k = int(np.argmax(np.abs(rel)))
+        key = f"maxwell={maxwell}"
+        out[key] = {
+            "max": float(np.abs(rel).max()),
+            "at_gap_mm": float(grid[k]),
+            "median": float(np.median(np.abs(rel))),
+            "share_beyond_3pct": float((np.abs(rel) > 0.03).mean()),
+        }
+        print(f"  {key}: default / small steps - 1 over gaps {grid[0]:.2f}-{grid[-1]:.2f} mm: "
+              f"max {out[key]['max']:.1%} at {grid[k]:.2f} mm, median {out[key]['median']:.1%}, "
+              f"beyond 3 %: {out[key]['share_beyond_3pct']:.0%}", flush=True)  # fmt: skip
+    return out
 
 
 def bench_laws(closed_gap: float = 5.0) -> dict:
@@ -300,6 +332,7 @@ SECTIONS = {
     "cases": bench_cases,
     "contact": bench_contact,
     "laws": bench_laws,
+    "crease": bench_crease,
     "length": bench_length,
     "mesh": bench_mesh,
     "planestrain": bench_planestrain,

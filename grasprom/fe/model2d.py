@@ -36,6 +36,7 @@ import numpy as np
 import pandas as pd
 import scipy.sparse as sp
 
+from grasprom.fe.crease import hermite_energy
 from grasprom.fe.linsolve import solve_symmetric
 from grasprom.fe.materials import Material, cofactor, get_material, pointwise_tangent
 
@@ -919,26 +920,12 @@ def _advance(disc, material, state: _State, h: float, settings: SolverSettings, 
     return _relax(disc, material, state, h, settings, fscale)
 
 
-def _hermite_energy(branch: list[tuple[float, float, float]], h: float) -> float:
-    """Strain energy (N mm/mm) of the followed branch at jaw height ``h`` (mm), cubic Hermite
-    through the recorded steps ``(h, energy, force_q)`` (``dE/dh = -force_q``); extrapolated
-    from the last interval below the last step."""
-    hs = np.array([b[0] for b in branch])
-    i = int(np.clip(np.searchsorted(-hs, -h) - 1, 0, len(branch) - 2))
-    (h0, e0, f0), (h1, e1, f1) = branch[i], branch[i + 1]
-    d = h1 - h0
-    s = (h - h0) / d
-    h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
-    h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
-    return h00 * e0 + h10 * d * (-f0) + h01 * e1 + h11 * d * (-f1)
-
-
 def _crease_onset(
     disc, material, snapped: _State, h_snap: float, branch, t: float, settings, fscale, landing
 ):
     """Continue a snapped (creased) state back to larger jaw heights while its strain energy
-    stays below the smooth branch's (``branch``, :func:`_hermite_energy`), up to the top of the
-    crease band (``h = 2 t``, ``t`` the wall thickness in mm).
+    stays below the smooth branch's (``branch``, :func:`grasprom.fe.crease.hermite_energy`), up
+    to the top of the crease band (``h = 2 t``, ``t`` the wall thickness in mm).
 
     Back steps are a quarter of the band's forward step and land on the jaw heights ``landing``
     (mm) they pass; the crossing (the Maxwell point) is bisected 10 times.  Returns
@@ -952,7 +939,7 @@ def _crease_onset(
     cur, h = snapped, h_snap
 
     def below(state: _State, hh: float) -> bool:
-        e_s = _hermite_energy(branch, hh)
+        e_s = hermite_energy(branch, hh)
         return energy(disc, material, state.u) < e_s - 1e-10 * abs(e_s)
 
     while h + dh <= h_top:

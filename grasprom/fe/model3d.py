@@ -36,6 +36,7 @@ import pandas as pd
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from grasprom.fe.crease import hermite_energy
 from grasprom.fe.hyperelastic3d import invariants as _invariants
 from grasprom.fe.hyperelastic3d import pointwise3d, stress_and_tangent
 from grasprom.fe.materials import Material, get_material
@@ -910,6 +911,81 @@ def _limit_step(spec: CaseSpec3D, h, dh, h_end, landing) -> float:
     return dh
 
 
+_STEP_ERRORS = (_NewtonFailure, RuntimeError, ValueError, FloatingPointError)
+
+
+def _crease_onset(st: _Setup, snapped, h_snap: float, branch, t: float, landing):
+    """Continue a snapped (creased) state back to larger jaw heights while its strain energy
+    stays below the smooth branch's (:func:`grasprom.fe.crease.hermite_energy`), up to the top
+    of the crease band (``h = 2 t``, ``t`` the wall thickness in mm); the 3D counterpart of
+    the 2D model's crease placement (Maxwell's rule).
+
+    ``snapped = (u, f, K, c)``.  Back steps are ``crease_step_fraction * t`` and land on the jaw
+    heights ``landing`` (mm) they pass; the crossing is bisected 8 times.  With stick contact
+    the jaw moves along its normal only, so its work is still ``F dh`` and ``dE/dh = -F``.
+    Returns ``[(h, (u, f, K, c), newton_iterations), ...]`` from the largest ``h`` down to just
+    above ``h_snap``; empty if the snapped state has no less energy than the branch one back
+    step up (a force drop along one branch, not a jump to another).
+    """
+    dh = st.settings.crease_step_fraction * t
+    out: list = []
+    cur, h = snapped, h_snap
+
+    def below(u, hh: float) -> bool:
+        e_s = hermite_energy(branch, hh)
+        return energy(st.disc, st.material, u) < e_s - 1e-10 * abs(e_s)
+
+    def solve(state, hh):
+        u, _, K, c = state
+        u, f, K, c, it = _solve_step(st, u, K, c, hh)
+        return (u, f, K, c), it
+
+    while h + dh <= 2.0 * t:
+        h_next = min([hc for hc in landing if h + 1e-12 < hc < h + dh], default=h + dh)
+        try:
+            nxt, it = solve(cur, h_next)
+        except _STEP_ERRORS:
+            break
+        if not below(nxt[0], h_next):
+            if not out:
+                break
+            lo, hi, lo_state, spent = h, h_next, cur, it
+            for _ in range(8):
+                mid = 0.5 * (lo + hi)
+                try:
+                    sm, it = solve(lo_state, mid)
+                except _STEP_ERRORS:
+                    break
+                spent += it
+                if below(sm[0], mid):
+                    lo, lo_state = mid, sm
+                else:
+                    hi = mid
+            if lo > h:
+                out.append((lo, lo_state, spent))
+            break
+        out.append((h_next, nxt, it))
+        cur, h = nxt, h_next
+    out.sort(key=lambda r: -r[0])
+    return out
+
+
+def _splice_crease(spec: CaseSpec3D, st: _Setup, rows: list, branch: list, back: list):
+    """Replace the rows (and ``branch`` entries) below the crossing ``back[0]`` by the creased
+    states of :func:`_crease_onset`; unchanged if ``back`` is empty."""
+    if not back:
+        return rows, branch
+    keep = [k for k, b in enumerate(branch) if b[0] > back[0][0]]
+    rows = [rows[k] for k in keep]
+    branch = [branch[k] for k in keep]
+    for hb, (ub, fb, _, cb), itb in back:
+        minJ = float(np.linalg.det(kinematics(st.disc, ub)).min())
+        rb = _row(spec, hb, contact_measures(st, cb, ub, fb, hb), minJ, itb)
+        rows.append(rb)
+        branch.append((hb, energy(st.disc, st.material, ub), 0.25 * rb["force_N"]))
+    return rows, branch
+
+
 def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=None) -> CaseResult:
     """Run one 3D clamping case from first touch to the closed gap or the force cap.
 
@@ -942,6 +1018,8 @@ def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=N
     u = np.zeros(st.disc.ndof)
     f, K, _ = assemble(st.disc, st.material, u)
     rows = [_row(spec, R, contact_measures(st, c, u, f, R), 1.0, 0)]
+    branch = [(R, 0.0, 0.0)]  # (h, strain energy, 1/8 jaw reaction) of every row
+    maxwell = s.maxwell_crease and spec.contact != "coulomb"  # friction dissipates
     h, dh = R, s.dh_initial_mm
     landing = sorted((0.5 * g for g in s.land_on_gaps_mm), reverse=True)
     n_fail, total_newton, force_prev = 0, 0, 0.0
@@ -954,7 +1032,7 @@ def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=N
             break
         try:
             u_new, f_new, K_new, c_new, iters = _solve_step(st, u, K, c, h - dh)
-        except (_NewtonFailure, RuntimeError, ValueError, FloatingPointError) as exc:
+        except _STEP_ERRORS as exc:
             n_fail += 1
             fail_log.append({"gap_mm": 2 * (h - dh), "dh_mm": dh, "reason": str(exc)})
             dh *= 0.25
@@ -963,7 +1041,13 @@ def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=N
         total_newton += iters
         minJ = float(np.linalg.det(kinematics(st.disc, u)).min())
         row = _row(spec, h, contact_measures(st, c, u, f, h), minJ, iters)
+        t = spec.thickness_mm
+        if maxwell and t < h < 2.0 * t and row["force_N"] < force_prev * (1 - 1e-4):
+            back = _crease_onset(st, (u, f, K, c), h, branch, t, landing)
+            rows, branch = _splice_crease(spec, st, rows, branch, back)
+            total_newton += sum(b[2] for b in back)
         rows.append(row)
+        branch.append((h, energy(st.disc, st.material, u), 0.25 * row["force_N"]))
         if progress is not None:
             progress(2 * h, row["force_N"])
         if on_step is not None:
