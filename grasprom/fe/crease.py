@@ -10,6 +10,9 @@ steps comes from :func:`hermite_energy` (jaw and floor are rigid and do no work,
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
+from typing import Any
+
 import numpy as np
 
 
@@ -25,3 +28,77 @@ def hermite_energy(branch: list[tuple[float, float, float]], h: float) -> float:
     h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
     h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
     return h00 * e0 + h10 * d * (-f0) + h01 * e1 + h11 * d * (-f1)
+
+
+def crease_onset(
+    solve: Callable[[Any, float], tuple[Any, int]],
+    below: Callable[[Any, float], bool],
+    snapped: Any,
+    h_snap: float,
+    dh: float,
+    h_top: float,
+    landing: Sequence[float] = (),
+    errors: tuple[type[BaseException], ...] = (ArithmeticError,),
+    n_bisect: int = 10,
+) -> list[tuple[float, Any, int]]:
+    """Continue a snapped (creased) state back to larger jaw heights while it stays below the
+    smooth branch in energy; the crossing is the Maxwell point.
+
+    Parameters
+    ----------
+    solve : callable
+        ``solve(state, h) -> (state, newton_iterations)``: equilibrium at jaw height ``h`` (mm)
+        from ``state``; raises one of ``errors`` if it fails.
+    below : callable
+        ``below(state, h)``: the state's strain energy is below the smooth branch's at ``h``
+        (e.g. :func:`hermite_energy` of the followed steps).
+    snapped : object
+        The creased state at ``h_snap`` (mm).
+    dh : float
+        Back step (mm).
+    h_top : float
+        Largest jaw height (mm) to continue to (the top of the crease band).
+    landing : sequence of float
+        Jaw heights (mm) to land on when a back step passes them.
+    errors : tuple of exception types
+        What a failed solve raises (the continuation stops there).
+    n_bisect : int
+        Bisections of the crossing.
+
+    Returns
+    -------
+    list of (h, state, newton_iterations)
+        From the largest ``h`` down to just above ``h_snap``; empty if the snapped state has no
+        less energy than the branch one back step up (a force drop along one branch, not a jump
+        to another).
+    """
+    out: list[tuple[float, Any, int]] = []
+    cur, h = snapped, h_snap
+    while h + dh <= h_top:
+        h_next = min([hc for hc in landing if h + 1e-12 < hc < h + dh], default=h + dh)
+        try:
+            nxt, it = solve(cur, h_next)
+        except errors:
+            break
+        if not below(nxt, h_next):
+            if not out:
+                break
+            lo, hi, lo_state, spent = h, h_next, cur, it  # bisect the crossing
+            for _ in range(n_bisect):
+                mid = 0.5 * (lo + hi)
+                try:
+                    sm, it = solve(lo_state, mid)
+                except errors:
+                    break
+                spent += it
+                if below(sm, mid):
+                    lo, lo_state = mid, sm
+                else:
+                    hi = mid
+            if lo > h:
+                out.append((lo, lo_state, spent))
+            break
+        out.append((h_next, nxt, it))
+        cur, h = nxt, h_next
+    out.sort(key=lambda r: -r[0])
+    return out

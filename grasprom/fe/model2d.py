@@ -36,7 +36,7 @@ import numpy as np
 import pandas as pd
 import scipy.sparse as sp
 
-from grasprom.fe.crease import hermite_energy
+from grasprom.fe.crease import crease_onset, hermite_energy
 from grasprom.fe.linsolve import solve_symmetric
 from grasprom.fe.materials import Material, cofactor, get_material, pointwise_tangent
 
@@ -925,51 +925,20 @@ def _crease_onset(
 ):
     """Continue a snapped (creased) state back to larger jaw heights while its strain energy
     stays below the smooth branch's (``branch``, :func:`grasprom.fe.crease.hermite_energy`), up
-    to the top of the crease band (``h = 2 t``, ``t`` the wall thickness in mm).
-
-    Back steps are a quarter of the band's forward step and land on the jaw heights ``landing``
-    (mm) they pass; the crossing (the Maxwell point) is bisected 10 times.  Returns
-    ``[(h, state, newton_iterations), ...]`` from the largest ``h`` down to just above
-    ``h_snap``; empty if the snapped state has no less energy than the branch already one back
-    step up (a force drop along one branch, not a jump to another).
+    to the top of the crease band (``h = 2 t``, ``t`` the wall thickness in mm):
+    :func:`grasprom.fe.crease.crease_onset` with back steps of a quarter of the band's forward
+    step, landing on ``landing`` (mm), the crossing bisected 10 times.
     """
-    dh = 0.25 * settings.crease_step_fraction * t
-    h_top = 2.0 * t
-    out: list[tuple[float, _State, int]] = []
-    cur, h = snapped, h_snap
 
     def below(state: _State, hh: float) -> bool:
         e_s = hermite_energy(branch, hh)
         return energy(disc, material, state.u) < e_s - 1e-10 * abs(e_s)
 
-    while h + dh <= h_top:
-        h_next = min([hc for hc in landing if h + 1e-12 < hc < h + dh], default=h + dh)
-        try:
-            nxt, it = _solve_step(disc, material, cur, h_next, settings, fscale)
-        except _STEP_ERRORS:
-            break
-        if not below(nxt, h_next):
-            if not out:  # not below one back step up: the drop was no snap to a new branch
-                break
-            lo, hi, lo_state, spent = h, h_next, cur, it  # bisect the crossing
-            for _ in range(10):
-                mid = 0.5 * (lo + hi)
-                try:
-                    sm, it = _solve_step(disc, material, lo_state, mid, settings, fscale)
-                except _STEP_ERRORS:
-                    break
-                spent += it
-                if below(sm, mid):
-                    lo, lo_state = mid, sm
-                else:
-                    hi = mid
-            if lo > h:
-                out.append((lo, lo_state, spent))
-            break
-        out.append((h_next, nxt, it))
-        cur, h = nxt, h_next
-    out.sort(key=lambda r: -r[0])
-    return out
+    def solve(state: _State, hh: float):
+        return _solve_step(disc, material, state, hh, settings, fscale)
+
+    dh = 0.25 * settings.crease_step_fraction * t
+    return crease_onset(solve, below, snapped, h_snap, dh, 2.0 * t, landing, _STEP_ERRORS, 10)
 
 
 def _splice_crease(disc, material, rows: list, branch: list, back: list, R: float, scale_N):

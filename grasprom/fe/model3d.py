@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 import scipy.sparse as sp
 
-from grasprom.fe.crease import hermite_energy
+from grasprom.fe.crease import crease_onset, hermite_energy
 from grasprom.fe.hyperelastic3d import invariants as _invariants
 from grasprom.fe.hyperelastic3d import pointwise3d, stress_and_tangent
 from grasprom.fe.linsolve import solve_symmetric
@@ -921,57 +921,25 @@ _STEP_ERRORS = (_NewtonFailure, RuntimeError, ValueError, FloatingPointError)
 def _crease_onset(st: _Setup, snapped, h_snap: float, branch, t: float, landing):
     """Continue a snapped (creased) state back to larger jaw heights while its strain energy
     stays below the smooth branch's (:func:`grasprom.fe.crease.hermite_energy`), up to the top
-    of the crease band (``h = 2 t``, ``t`` the wall thickness in mm); the 3D counterpart of
-    the 2D model's crease placement (Maxwell's rule).
+    of the crease band (``h = 2 t``, ``t`` the wall thickness in mm): the 3D counterpart of the
+    2D model's crease placement (Maxwell's rule, :func:`grasprom.fe.crease.crease_onset`).
 
-    ``snapped = (u, f, K, c)``.  Back steps are ``crease_step_fraction * t`` and land on the jaw
-    heights ``landing`` (mm) they pass; the crossing is bisected 8 times.  With stick contact
-    the jaw moves along its normal only, so its work is still ``F dh`` and ``dE/dh = -F``.
-    Returns ``[(h, (u, f, K, c), newton_iterations), ...]`` from the largest ``h`` down to just
-    above ``h_snap``; empty if the snapped state has no less energy than the branch one back
-    step up (a force drop along one branch, not a jump to another).
+    ``snapped = (u, f, K, c)``.  Back steps are ``crease_step_fraction * t``, landing on
+    ``landing`` (mm); the crossing is bisected 8 times.  With stick contact the jaw moves along
+    its normal only, so its work is still ``F dh`` and ``dE/dh = -F``.
     """
-    dh = st.settings.crease_step_fraction * t
-    out: list = []
-    cur, h = snapped, h_snap
 
-    def below(u, hh: float) -> bool:
+    def below(state, hh: float) -> bool:
         e_s = hermite_energy(branch, hh)
-        return energy(st.disc, st.material, u) < e_s - 1e-10 * abs(e_s)
+        return energy(st.disc, st.material, state[0]) < e_s - 1e-10 * abs(e_s)
 
-    def solve(state, hh):
+    def solve(state, hh: float):
         u, _, K, c = state
         u, f, K, c, it = _solve_step(st, u, K, c, hh)
         return (u, f, K, c), it
 
-    while h + dh <= 2.0 * t:
-        h_next = min([hc for hc in landing if h + 1e-12 < hc < h + dh], default=h + dh)
-        try:
-            nxt, it = solve(cur, h_next)
-        except _STEP_ERRORS:
-            break
-        if not below(nxt[0], h_next):
-            if not out:
-                break
-            lo, hi, lo_state, spent = h, h_next, cur, it
-            for _ in range(8):
-                mid = 0.5 * (lo + hi)
-                try:
-                    sm, it = solve(lo_state, mid)
-                except _STEP_ERRORS:
-                    break
-                spent += it
-                if below(sm[0], mid):
-                    lo, lo_state = mid, sm
-                else:
-                    hi = mid
-            if lo > h:
-                out.append((lo, lo_state, spent))
-            break
-        out.append((h_next, nxt, it))
-        cur, h = nxt, h_next
-    out.sort(key=lambda r: -r[0])
-    return out
+    dh = st.settings.crease_step_fraction * t
+    return crease_onset(solve, below, snapped, h_snap, dh, 2.0 * t, landing, _STEP_ERRORS, 8)
 
 
 def _splice_crease(spec: CaseSpec3D, st: _Setup, rows: list, branch: list, back: list):

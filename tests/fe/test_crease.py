@@ -4,7 +4,7 @@ analytic energy: a cubic Hermite through (h, E, F = -dE/dh) is exact for a cubic
 import numpy as np
 import pytest
 
-from grasprom.fe.crease import hermite_energy
+from grasprom.fe.crease import crease_onset, hermite_energy
 
 
 def test_hermite_energy_is_exact_for_a_cubic_and_uses_dE_dh_equal_minus_F():
@@ -23,3 +23,34 @@ def test_hermite_energy_is_exact_for_a_cubic_and_uses_dE_dh_equal_minus_F():
     # a wrong sign of F (dE/dh = +F) is caught
     flipped = [(h, e, -f) for h, e, f in branch]
     assert abs(hermite_energy(flipped, 8.0) - E(8.0)) > 0.1
+
+
+def test_crease_onset_finds_the_energy_crossing_of_two_analytic_branches():
+    """Smooth branch E_s(h) = (3 - h)^2, creased branch E_c(h) = 0.6 (3 - h)^2 + 0.2 (h - 1): the
+    creased state is lower below h* = 2.2929 (E_s = E_c: 0.4 (3 - h)^2 = 0.2 (h - 1)), so from a
+    snap at h = 1.5 the continuation must stop at h* (bisected to the back step / 2^10)."""
+
+    def E_s(h):
+        return (3.0 - h) ** 2
+
+    def E_c(h):
+        return 0.6 * (3.0 - h) ** 2 + 0.2 * (h - 1.0)
+
+    h_star = 3.0 - (-0.2 + np.sqrt(0.04 + 4 * 0.4 * 0.4)) / (2 * 0.4)
+    assert E_s(h_star) == pytest.approx(E_c(h_star))
+
+    def solve(state, h):  # the creased branch is followed: the state is its jaw height
+        return h, 2
+
+    def below(state, h):
+        return E_c(state) < E_s(h)
+
+    dh = 0.05
+    out = crease_onset(solve, below, 1.5, 1.5, dh, h_top=2.8, landing=(2.0,), n_bisect=10)
+    hs = [h for h, _, _ in out]
+    assert hs == sorted(hs, reverse=True) and hs[-1] > 1.5
+    assert 2.0 in hs  # landed on the requested jaw height
+    assert hs[0] == pytest.approx(h_star, abs=dh / 2**10)
+    assert hs[0] <= h_star
+    # a drop that is no jump to a lower branch: nothing to place
+    assert crease_onset(solve, lambda s, h: False, 1.5, 1.5, dh, 2.8) == []
