@@ -17,9 +17,23 @@ import numpy as np
 
 
 def hermite_energy(branch: list[tuple[float, float, float]], h: float) -> float:
-    """Strain energy (N mm/mm) of the followed branch at jaw height ``h`` (mm), cubic Hermite
-    through the recorded steps ``(h, energy, force_q)`` (``dE/dh = -force_q``); extrapolated
-    from the last interval below the last step."""
+    """Strain energy of the followed branch at jaw height ``h`` (mm), cubic Hermite through the
+    recorded steps.
+
+    Parameters
+    ----------
+    branch : list of (h, energy, force)
+        Steps in decreasing ``h`` (mm): the model's strain energy and its jaw reaction, with
+        ``dE/dh = -force`` (2D: N mm/mm and N/mm of the quarter model; 3D: N mm and N of the
+        1/8 model).
+    h : float
+        Jaw height (mm); below the last step the last interval is extrapolated.
+
+    Returns
+    -------
+    float
+        The energy, in the units of ``branch``.
+    """
     hs = np.array([b[0] for b in branch])
     i = int(np.clip(np.searchsorted(-hs, -h) - 1, 0, len(branch) - 2))
     (h0, e0, f0), (h1, e1, f1) = branch[i], branch[i + 1]

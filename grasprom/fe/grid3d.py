@@ -36,8 +36,8 @@ ENDS = ("seed", "free")
 """End conditions of the 3D tube (``--ends``)."""
 
 MIN_CIRC_3D = 6
-"""Fewest divisions along the quarter circumference a 3D case accepts (a guard: with fewer,
-one graded element spans more than about 20 degrees of the ring)."""
+"""Fewest divisions along the quarter circumference a 3D case accepts (a guard: coarser meshes
+are not tested against the contact, and one graded element would span over 20 degrees)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -81,7 +81,7 @@ def check_options(
         raise SweepInputError(
             f"--contact: {opts.contact!r} unknown; valid: {', '.join(CONTACT_LAWS)}"
         )
-    _check_friction(model, opts)
+    _check_friction(opts)
     if opts.ends is not None and opts.ends not in ENDS:
         raise SweepInputError(f"--ends: {opts.ends!r} unknown; valid: {', '.join(ENDS)}")
     tl = opts.tube_length_mm
@@ -96,7 +96,7 @@ def check_options(
             raise SweepInputError(f"{flag}: a 2D mesh option (--model 2d)")
 
 
-def _check_friction(model: str, opts: Model3DOptions) -> None:
+def _check_friction(opts: Model3DOptions) -> None:
     """``--contact coulomb`` needs ``--friction MU`` > 0 (both models); MU needs coulomb."""
     mu = opts.friction
     if opts.contact == "coulomb":
@@ -150,8 +150,8 @@ def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, int]) -
     if mesh.get("n_circ", MIN_CIRC_3D) < MIN_CIRC_3D:
         raise SweepInputError(
             f"--n-circ: the 3D model needs at least {MIN_CIRC_3D} divisions along the quarter "
-            f"circumference (coarser meshes put more than about 20 degrees of the ring in one "
-            f"element), got {mesh['n_circ']}"
+            f"circumference (coarser meshes are not tested against the contact), "
+            f"got {mesh['n_circ']}"
         )
     extra = {k: v for k, v in dataclasses.asdict(opts).items() if v is not None}
     extra["friction"] = float(opts.friction) if opts.contact == "coulomb" else 0.0

@@ -191,8 +191,8 @@ def discretise3d(outer_radius: float, thickness: float, z_nodes: np.ndarray, mes
     # a facet is on a wall when all its vertices are (the chord midpoint of a coarse
     # circumferential element sags below the wall by R (1 - cos(dtheta / 2)))
     rv = np.hypot(*m.p[:2, m.facets[:, bf]])
-    outer_f = bf[np.all(np.abs(rv - outer_radius) < 1e-9 * outer_radius + tol, axis=0)]
-    inner_f = bf[np.all(np.abs(rv - rin) < 1e-9 * outer_radius + tol, axis=0)]
+    outer_f = bf[np.all(np.abs(rv - outer_radius) < tol, axis=0)]
+    inner_f = bf[np.all(np.abs(rv - rin) < tol, axis=0)]
     outer_nodes = np.unique(basis.get_dofs(outer_f).all())
     inner_nodes = np.unique(basis.get_dofs(inner_f).all())
     on_y0 = np.abs(X[:, 1]) < tol

@@ -227,8 +227,11 @@ class SolverSettings:
     max_relax : int
         Proximal steps allowed for one snap.
     crease_step_fraction : float
-        In the crease band (walls not met, gap below 4 t) a jaw step is at most this fraction of
-        the wall thickness, so the fold is followed closely and the crease onset is located.
+        2D: in the crease band (walls not met, gap below 4 t) a jaw step is at most this fraction
+        of the wall thickness, so the fold is followed closely and the crease onset is located;
+        the back steps of the crease placement are a quarter of it.  3D: only the back steps,
+        this fraction of the wall thickness (the forward steps are not capped: a 3D step costs
+        too much).
     maxwell_crease : bool
         Place a snap in the crease band where the snapped (creased) state first has less
         strain energy than the smooth fold at the same jaw height (Maxwell's rule,
@@ -630,6 +633,17 @@ class _NewtonFailure(Exception):
     pass
 
 
+def _plus_diagonal(disc: _Discretisation, K: sp.csr_matrix, D: sp.spmatrix) -> sp.csr_matrix:
+    """``K + D`` for a diagonal ``D``, kept on the discretisation's CSR pattern.
+
+    A scipy sum drops the explicit zeros of ``K``, after which ``K.data`` no longer lines up
+    with ``disc.rows`` / ``disc.diag_pos`` (:func:`_constrained_system` relies on it).
+    """
+    data = K.data.copy()
+    data[disc.diag_pos] += D.diagonal()
+    return sp.csr_matrix((data, disc.indices, disc.indptr), shape=K.shape)
+
+
 def _prox_terms(disc, fixed: np.ndarray, prox):
     """Energy, force and tangent of the proximal term ``c/2 |u - u_ref|^2`` on the free dofs
     (:func:`_relax`); ``prox`` is ``(c, u_ref)`` or None (no term)."""
@@ -665,9 +679,9 @@ def _newton(
         if f is None:
             return f, K, minJ
         if prox is not None:
-            f, K = f + f_prox(u), (K + k_prox if K is not None else None)
+            f, K = f + f_prox(u), (_plus_diagonal(disc, K, k_prox) if K is not None else None)
         if extra is not None:
-            f, K = f + f_x(u), (K + k_x(u) if K is not None else None)
+            f, K = f + f_x(u), (_plus_diagonal(disc, K, k_x(u)) if K is not None else None)
         return f, K, minJ
 
     def energy_p(u):

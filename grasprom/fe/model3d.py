@@ -10,9 +10,11 @@ Model (issue #18; Guachi et al.'s "CS" cylinder with finite jaws):
   rounded off with the edge radius ``r`` beyond, so its edge does not cut the mesh;
 * contact of the outer-wall nodes with the jaw, exact primal active set: ``"stick"`` (default,
   Guachi et al.'s "no sliding at the interface": a touching node is tied to the jaw at its touch
-  point, all three components prescribed, released when its normal reaction turns tensile) or
+  point, all three components prescribed, released when its normal reaction turns tensile),
   ``"frictionless"`` (the node's normal displacement is prescribed, the tangential one free; on
-  the rounded edge in a rotated frame with the node projected back onto the arc);
+  the rounded edge in a rotated frame with the node projected back onto the arc,
+  :class:`SlidingFrame`) or ``"coulomb"`` (frictionless plus a regularised Coulomb potential,
+  :class:`CoulombFriction`);
 * self-contact of the inner walls = contact of the inner wall with the plane ``y = 0``; the two
   walls are mirror images, so mirror points never slip relative to each other and this contact
   is exact for any friction law;
@@ -339,8 +341,8 @@ class _Setup:
 
 
 @dataclass(frozen=True)
-class _Friction:
-    """Regularised Coulomb friction of the sliding jaw nodes during one pass (internal).
+class CoulombFriction:
+    """Regularised Coulomb friction of the sliding jaw nodes during one pass.
 
     Each node in contact with a normal force ``N`` (lagged: the previous solve's) is held at
     its anchor ``a`` by ``c (sqrt(|d|^2 + e^2) - e)``, ``d = x - a`` (3-vector, mm), ``c = mu
@@ -349,6 +351,17 @@ class _Friction:
     handles stick and slip without an active set, as the 2D model's friction.  On the flat face
     ``d`` is tangential (the node's normal position is prescribed); on the edge arc it is the
     chord, whose normal part is second order in the slide.
+
+    Parameters
+    ----------
+    nodes : ndarray of int
+        The nodes with friction.
+    anchor : ndarray (n, 3)
+        Their anchors, absolute positions (mm).
+    c : ndarray (n,)
+        ``mu N`` of each node (N).
+    eps : float
+        Stick regularisation (mm).
     """
 
     nodes: np.ndarray  # outer nodes with friction
@@ -357,7 +370,7 @@ class _Friction:
     eps: float = FRICTION_EPS_MM
 
     @classmethod
-    def of(cls, st: _Setup, c: _Contact, h: float) -> _Friction | None:
+    def of(cls, st: _Setup, c: _Contact, h: float) -> CoulombFriction | None:
         """The friction of the contact state ``c`` at jaw height ``h`` (None: no friction)."""
         if not np.isfinite(st.mu) or c.normal is None:
             return None
@@ -385,31 +398,35 @@ class _Friction:
         out[idx] = (self.c / r)[:, None] * d
         return out
 
-    def tangent(self, X, u) -> sp.csr_matrix:
-        """Its Hessian (N/mm): ``c (I / r - d d^T / r^3)`` per node."""
-        d, r = self._slide(X, u)
+    def add_tangent(self, disc: Disc3D, K: sp.csr_matrix, u) -> sp.csr_matrix:
+        """``K`` plus its Hessian (N/mm), ``c (I / r - d d^T / r^3)`` per node, on the
+        discretisation's CSR pattern (a scipy sum would drop ``K``'s explicit zeros, and
+        :func:`_constrained` relies on the pattern).  A node's 3 x 3 block sits in each of its
+        rows at the diagonal's position + (j - i): the columns of one node are adjacent.
+        """
+        d, r = self._slide(disc.X, u)
         blk = (self.c / r)[:, None, None] * (
             np.eye(3) - d[:, :, None] * d[:, None, :] / (r * r)[:, None, None]
         )
-        idx = 3 * self.nodes[:, None] + np.arange(3)
-        rows = np.repeat(idx, 3, axis=1).ravel()
-        cols = np.tile(idx, (1, 3)).ravel()
-        n = u.size
-        return sp.csr_matrix((blk.ravel(), (rows, cols)), shape=(n, n))
+        i = np.arange(3)
+        pos = disc.diag_pos[3 * self.nodes[:, None, None] + i[:, None]] + (i[None, :] - i[:, None])
+        data = K.data.copy()
+        np.add.at(data, pos.ravel(), blk.ravel())
+        return sp.csr_matrix((data, disc.indices, disc.indptr), shape=K.shape)
 
 
-def _assemble_x(st: _Setup, u, fric: _Friction | None, tangent: bool = True):
+def _assemble_x(st: _Setup, u, fric: CoulombFriction | None, tangent: bool = True):
     """Internal force plus friction force (N) and tangent (N/mm); ``(None, None)`` if inverted."""
     f, K, _ = assemble(st.disc, st.material, u, tangent)
     if f is None or fric is None:
         return f, K
     f = f + fric.force(st.disc.X, u)
     if K is not None:
-        K = (K + fric.tangent(st.disc.X, u)).tocsr()
+        K = fric.add_tangent(st.disc, K, u)
     return f, K
 
 
-def _energy_x(st: _Setup, u, fric: _Friction | None) -> float:
+def _energy_x(st: _Setup, u, fric: CoulombFriction | None) -> float:
     """Strain energy plus the friction potential (N mm)."""
     e = energy(st.disc, st.material, u)
     return e if fric is None or not np.isfinite(e) else e + fric.energy(st.disc.X, u)
@@ -647,7 +664,7 @@ def _newton(st: _Setup, u, cons, h, c: _Contact, rtol: float | None = None, fric
     Converges to ``rtol`` (default ``SolverSettings.rtol``) times the force scale (N).  A step
     that would push inactive nodes deeper than ``0.02 t`` into the jaw or the floor is cut at
     the touch and the solve returns early (``contact_event``) for the active set.  ``fric``
-    (:class:`_Friction`) adds the friction potential; ``f`` returned is the internal force
+    (:class:`CoulombFriction`) adds the friction potential; ``f`` returned is the internal force
     without it (at a node in contact: the jaw's reaction), ``K`` the tangent with it.
     """
     fixed, values, fr = cons
@@ -779,7 +796,7 @@ def _solve_step(st: _Setup, u, K_old, c: _Contact, h: float):
         jump = _enforce(st, u, fixed, values, fr, h) - u
         if K_old is not None and np.any(jump != 0.0):
             u = _predict(st, u, K_old, fixed, jump)
-        fric = _Friction.of(st, c, h)
+        fric = CoulombFriction.of(st, c, h)
         cons = (fixed, values, fr)
         u, f, K, it, event = _newton(st, u, cons, h, c, None if exact else loose, fric)
         iters += it

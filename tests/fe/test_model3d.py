@@ -352,3 +352,38 @@ def test_coulomb_3d_spans_frictionless_to_stick():
     assert np.all(f[("coulomb", 0.2)] <= hi * (1 + 1e-6))
     assert 0.1 < share[("coulomb", 0.2)] <= 0.2 * (1 + 1e-9)
     assert share[("stick", 0.0)] > 0.2
+
+
+def test_coulomb_friction_tangent_is_its_force_derivative_on_the_mesh_pattern():
+    """The friction Hessian added to K is d(force)/du (central differences), and the sum keeps
+    the discretisation's CSR pattern even where K stores exact zeros (a z-independent state
+    has them; a scipy sum would drop them and misalign K.data with the constraint maps)."""
+    from grasprom.fe.model3d import CoulombFriction
+
+    z = axial_nodes(2.0, 2.0, 2, 0)
+    disc = discretise3d(15.0, 1.4, z, MeshSpec3D(n_layers=1, n_circ=3))
+    mat = get_material("mr")
+    u = np.zeros(disc.ndof)
+    u[1::3] = -0.01 * disc.X[:, 1]  # z-independent: exact zeros in K
+    _, K, _ = assemble(disc, mat, u)
+    assert np.count_nonzero(K.data == 0.0) > 0
+    nodes = disc.outer_nodes[:4]
+    rng = np.random.default_rng(2)
+    anchor = disc.X[nodes] + u.reshape(-1, 3)[nodes] + 2e-3 * rng.standard_normal((4, 3))
+    fric = CoulombFriction(nodes, anchor, np.array([0.3, 1.0, 0.0, 2.0]))
+    Kf = fric.add_tangent(disc, K, u)
+    assert Kf.nnz == K.nnz and np.array_equal(Kf.indices, K.indices)
+    h = 1e-7
+    for i in [3 * nodes[0], 3 * nodes[1] + 1, 3 * nodes[3] + 2]:
+        e = np.zeros(disc.ndof)
+        e[i] = h
+        col = (fric.force(disc.X, u + e) - fric.force(disc.X, u - e)) / (2 * h)
+        np.testing.assert_allclose(
+            (Kf - K)[:, i].toarray().ravel(), col, atol=1e-6 * abs(col).max()
+        )
+    e0 = fric.energy(disc.X, u)
+    i = 3 * nodes[1]
+    e = np.zeros(disc.ndof)
+    e[i] = h
+    fd = (fric.energy(disc.X, u + e) - fric.energy(disc.X, u - e)) / (2 * h)
+    assert fric.force(disc.X, u)[i] == pytest.approx(fd, rel=1e-6) and e0 > 0
