@@ -116,3 +116,35 @@ def crease_onset(
         cur, h = nxt, h_next
     out.sort(key=lambda r: -r[0])
     return out
+
+
+def splice_crease(
+    rows: list, branch: list, back: list[tuple[float, Any, int]], entry: Callable
+) -> tuple[list, list]:
+    """Replace the rows (and ``branch`` entries) below the crossing ``back[0]`` by the creased
+    states of :func:`crease_onset`; unchanged if ``back`` is empty.
+
+    Parameters
+    ----------
+    rows, branch : list
+        The table rows and the ``(h, energy, force)`` entries so far, one per row, in
+        decreasing jaw height ``h`` (mm).
+    back : list of (h, state, newton_iterations)
+        :func:`crease_onset`'s result.
+    entry : callable
+        ``entry(h, state, newton_iterations) -> (row, branch_entry)`` of a creased state.
+
+    Returns
+    -------
+    rows, branch : list
+    """
+    if not back:
+        return rows, branch
+    keep = [k for k, b in enumerate(branch) if b[0] > back[0][0]]
+    rows = [rows[k] for k in keep]
+    branch = [branch[k] for k in keep]
+    for hb, sb, itb in back:
+        row, b = entry(hb, sb, itb)
+        rows.append(row)
+        branch.append(b)
+    return rows, branch

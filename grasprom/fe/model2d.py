@@ -36,7 +36,7 @@ import numpy as np
 import pandas as pd
 import scipy.sparse as sp
 
-from grasprom.fe.crease import crease_onset, hermite_energy
+from grasprom.fe.crease import crease_onset, hermite_energy, splice_crease
 from grasprom.fe.linsolve import solve_symmetric
 from grasprom.fe.materials import Material, cofactor, get_material, pointwise_tangent
 
@@ -633,6 +633,28 @@ class _NewtonFailure(Exception):
     pass
 
 
+def check_friction(contact: str, friction: float) -> None:
+    """Refuse a friction coefficient that does not fit the contact law (2D and 3D models).
+
+    Parameters
+    ----------
+    contact : str
+        The jaw contact law.
+    friction : float
+        Coulomb coefficient (-): > 0 and finite with ``contact="coulomb"``, 0 otherwise.
+
+    Raises
+    ------
+    ValueError
+        Naming ``friction`` and the contact law.
+    """
+    mu = friction
+    if contact == "coulomb" and not (np.isfinite(mu) and mu > 0):
+        raise ValueError(f"invalid friction={mu!r}: contact='coulomb' needs a coefficient > 0")
+    if contact != "coulomb" and mu != 0:
+        raise ValueError(f"invalid friction={mu!r}: only used with contact='coulomb'")
+
+
 def _plus_diagonal(disc: _Discretisation, K: sp.csr_matrix, D: sp.spmatrix) -> sp.csr_matrix:
     """``K + D`` for a diagonal ``D``, kept on the discretisation's CSR pattern.
 
@@ -957,17 +979,13 @@ def _crease_onset(
 
 def _splice_crease(disc, material, rows: list, branch: list, back: list, R: float, scale_N):
     """Replace the rows (and ``branch`` entries) below the Maxwell point ``back[0]`` by the
-    creased states of :func:`_crease_onset`; unchanged if ``back`` is empty."""
-    if not back:
-        return rows, branch
-    keep = [k for k, b in enumerate(branch) if b[0] > back[0][0]]
-    rows = [rows[k] for k in keep]
-    branch = [branch[k] for k in keep]
-    for hb, sb, itb in back:
+    creased states of :func:`_crease_onset` (:func:`grasprom.fe.crease.splice_crease`)."""
+
+    def entry(hb: float, sb: _State, itb: int):
         rb = _step_row(disc, sb, hb, R, scale_N, itb)
-        rows.append(rb)
-        branch.append((hb, energy(disc, material, sb.u), rb["force_N"] / scale_N))
-    return rows, branch
+        return rb, (hb, energy(disc, material, sb.u), rb["force_N"] / scale_N)
+
+    return splice_crease(rows, branch, back, entry)
 
 
 def _relax(disc, material, state: _State, h: float, settings: SolverSettings, fscale):
@@ -1221,8 +1239,4 @@ def _validate_spec(spec: CaseSpec) -> None:
             raise ValueError(f"invalid {name}={value!r} (diameter_mm={spec.diameter_mm})")
     if spec.contact not in CONTACTS_2D:
         raise ValueError(f"invalid contact={spec.contact!r}; valid: {', '.join(CONTACTS_2D)}")
-    mu = spec.friction
-    if spec.contact == "coulomb" and not (np.isfinite(mu) and mu > 0):
-        raise ValueError(f"invalid friction={mu!r}: contact='coulomb' needs a coefficient > 0")
-    if spec.contact != "coulomb" and mu != 0:
-        raise ValueError(f"invalid friction={mu!r}: only used with contact='coulomb'")
+    check_friction(spec.contact, spec.friction)

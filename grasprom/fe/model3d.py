@@ -37,13 +37,19 @@ import numpy as np
 import pandas as pd
 import scipy.sparse as sp
 
-from grasprom.fe.crease import crease_onset, hermite_energy
+from grasprom.fe.crease import crease_onset, hermite_energy, splice_crease
 from grasprom.fe.hyperelastic3d import invariants as _invariants
 from grasprom.fe.hyperelastic3d import pointwise3d, stress_and_tangent
 from grasprom.fe.linsolve import solve_symmetric
 from grasprom.fe.materials import Material, get_material
 from grasprom.fe.mesh3d import Disc3D, MeshSpec3D, axial_nodes, discretise3d
-from grasprom.fe.model2d import COLUMN_DESCRIPTIONS, COLUMNS, CaseResult, SolverSettings
+from grasprom.fe.model2d import (
+    COLUMN_DESCRIPTIONS,
+    COLUMNS,
+    CaseResult,
+    SolverSettings,
+    check_friction,
+)
 
 ENDS = ("free", "seed")
 CONTACTS = ("stick", "frictionless", "coulomb")
@@ -309,8 +315,8 @@ class JawProfile:
 @dataclass
 class _Contact:
     """Contact state: active jaw nodes (over ``disc.outer_nodes``), stick anchors, floor;
-    ``normal``: the jaw's normal reaction (N) at each outer node in the last solution (the
-    lagged normal force of Coulomb friction)."""
+    ``normal``: with Coulomb contact (None otherwise), the jaw's normal reaction (N) at each
+    outer node in the last solution (the lagged normal force of the friction)."""
 
     jaw_active: np.ndarray
     anchor: np.ndarray  # (n_outer, 3): x, y - h, z of the stick point / friction anchor
@@ -372,7 +378,7 @@ class CoulombFriction:
     @classmethod
     def of(cls, st: _Setup, c: _Contact, h: float) -> CoulombFriction | None:
         """The friction of the contact state ``c`` at jaw height ``h`` (None: no friction)."""
-        if not np.isfinite(st.mu) or c.normal is None:
+        if c.normal is None:  # not Coulomb contact
             return None
         sel = c.jaw_active & (c.normal > 0)
         if not np.any(sel):
@@ -725,6 +731,13 @@ def _jaw_normals(st: _Setup, c: _Contact, u, h):
     return ny, nz
 
 
+def _jaw_reactions(st: _Setup, c: _Contact, u, f, h) -> np.ndarray:
+    """Normal jaw reaction (N, > 0 pressing) at every outer node, from the internal force."""
+    on = st.disc.outer_nodes
+    ny, nz = _jaw_normals(st, c, u, h)
+    return f[3 * on + 1] * ny + f[3 * on + 2] * nz
+
+
 def _update_active(st: _Setup, c: _Contact, u, f, h, add_only: bool = False):
     """New contact state from a converged solution (release tensile, add penetrating).
 
@@ -732,8 +745,7 @@ def _update_active(st: _Setup, c: _Contact, u, f, h, add_only: bool = False):
     """
     d = st.disc
     on, inn = d.outer_nodes, d.inner_nodes
-    ny, nz = _jaw_normals(st, c, u, h)
-    lam = f[3 * on + 1] * ny + f[3 * on + 2] * nz
+    lam = _jaw_reactions(st, c, u, f, h)
     xyz = d.X + u.reshape(-1, 3)
     gap, yp, zp, _, _ = st.jaw.project(xyz[on, 1], xyz[on, 2], h)
     tol = 1e-9 * max(1.0, h)
@@ -755,10 +767,7 @@ FRICTION_NORMAL_RTOL = 1e-5
 
 def _normal_forces(st: _Setup, c: _Contact, u, f, h) -> np.ndarray:
     """The jaw's normal reaction (N, >= 0) at each outer node in contact, 0 elsewhere."""
-    on = st.disc.outer_nodes
-    ny, nz = _jaw_normals(st, c, u, h)
-    lam = f[3 * on + 1] * ny + f[3 * on + 2] * nz
-    return np.where(c.jaw_active, np.maximum(lam, 0.0), 0.0)
+    return np.where(c.jaw_active, np.maximum(_jaw_reactions(st, c, u, f, h), 0.0), 0.0)
 
 
 def _slide_anchors(st: _Setup, c: _Contact, u, h) -> np.ndarray:
@@ -787,10 +796,7 @@ def _solve_step(st: _Setup, u, K_old, c: _Contact, h: float):
     iters = 0
     loose = max(ACTIVE_SET_RTOL, st.settings.rtol)
     exact = False
-    coulomb = np.isfinite(st.mu)
-    if coulomb and c.normal is None:
-        c = c.copy()
-        c.normal = np.zeros(c.jaw_active.size)
+    coulomb = c.normal is not None  # Coulomb contact (:func:`_initial_contact`)
     for _ in range(st.settings.max_active_set):
         fixed, values, fr = _targets(st, c, h, u)
         jump = _enforce(st, u, fixed, values, fr, h) - u
@@ -906,6 +912,8 @@ def _initial_contact(st: _Setup, R: float) -> _Contact:
     c.anchor[:, 0] = X[:, 0]
     c.anchor[:, 1] = X[:, 1] - R
     c.anchor[:, 2] = X[:, 2]
+    if np.isfinite(st.mu):  # Coulomb: the lagged normal force, none yet
+        c.normal = np.zeros(on.size)
     return c
 
 
@@ -961,18 +969,15 @@ def _crease_onset(st: _Setup, snapped, h_snap: float, branch, t: float, landing)
 
 def _splice_crease(spec: CaseSpec3D, st: _Setup, rows: list, branch: list, back: list):
     """Replace the rows (and ``branch`` entries) below the crossing ``back[0]`` by the creased
-    states of :func:`_crease_onset`; unchanged if ``back`` is empty."""
-    if not back:
-        return rows, branch
-    keep = [k for k, b in enumerate(branch) if b[0] > back[0][0]]
-    rows = [rows[k] for k in keep]
-    branch = [branch[k] for k in keep]
-    for hb, (ub, fb, _, cb), itb in back:
+    states of :func:`_crease_onset` (:func:`grasprom.fe.crease.splice_crease`)."""
+
+    def entry(hb: float, state, itb: int):
+        ub, fb, _, cb = state
         minJ = float(np.linalg.det(kinematics(st.disc, ub)).min())
         rb = _row(spec, hb, contact_measures(st, cb, ub, fb, hb), minJ, itb)
-        rows.append(rb)
-        branch.append((hb, energy(st.disc, st.material, ub), 0.25 * rb["force_N"]))
-    return rows, branch
+        return rb, (hb, energy(st.disc, st.material, ub), 0.25 * rb["force_N"])
+
+    return splice_crease(rows, branch, back, entry)
 
 
 def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=None) -> CaseResult:
@@ -1012,6 +1017,7 @@ def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=N
     h, dh = R, s.dh_initial_mm
     landing = sorted((0.5 * g for g in s.land_on_gaps_mm), reverse=True)
     n_fail, total_newton, force_prev = 0, 0, 0.0
+    t = spec.thickness_mm
     fail_log: list[dict] = []
     status, reason = "partial", ""
     while True:
@@ -1030,13 +1036,13 @@ def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=N
         total_newton += iters
         minJ = float(np.linalg.det(kinematics(st.disc, u)).min())
         row = _row(spec, h, contact_measures(st, c, u, f, h), minJ, iters)
-        t = spec.thickness_mm
         if maxwell and t < h < 2.0 * t and row["force_N"] < force_prev * (1 - 1e-4):
             back = _crease_onset(st, (u, f, K, c), h, branch, t, landing)
             rows, branch = _splice_crease(spec, st, rows, branch, back)
             total_newton += sum(b[2] for b in back)
         rows.append(row)
-        branch.append((h, energy(st.disc, st.material, u), 0.25 * row["force_N"]))
+        e = energy(st.disc, st.material, u) if maxwell else np.nan  # only the crease needs it
+        branch.append((h, e, 0.25 * row["force_N"]))
         if progress is not None:
             progress(2 * h, row["force_N"])
         if on_step is not None:
@@ -1108,11 +1114,7 @@ def _validate_spec(spec: CaseSpec3D) -> None:
         raise ValueError(f"unknown ends {spec.ends!r}; valid: {', '.join(ENDS)}")
     if spec.contact not in CONTACTS:
         raise ValueError(f"unknown contact {spec.contact!r}; valid: {', '.join(CONTACTS)}")
-    mu = spec.friction
-    if spec.contact == "coulomb" and not (np.isfinite(mu) and mu > 0):
-        raise ValueError(f"invalid friction={mu!r}: contact='coulomb' needs a coefficient > 0")
-    if spec.contact != "coulomb" and mu != 0:
-        raise ValueError(f"invalid friction={mu!r}: only used with contact='coulomb'")
+    check_friction(spec.contact, spec.friction)
     if spec.plane_strain and spec.flat_half_length_mm < 0.5 * spec.tube_length_mm:
         raise ValueError("plane_strain needs a flat jaw at least as long as the tube")
 
