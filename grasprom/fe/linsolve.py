@@ -1,6 +1,20 @@
-"""Sparse direct solve of the symmetric tangent systems of the FE models."""
+"""Sparse direct solves of the symmetric tangent systems of the FE models.
+
+Two back ends, both direct:
+
+- :func:`solve_symmetric`: scipy's SuperLU in symmetric mode (always available);
+- :class:`PardisoLDLT`: Intel MKL PARDISO's symmetric indefinite ``L D L^T`` (matrix type -2)
+  on the upper triangle, with the fill-reducing analysis (METIS) kept while the sparsity pattern
+  does not change (needs the optional ``pypardiso``, which brings MKL: ``pip install
+  'grasprom[fast]'``).
+
+:func:`make_solver` picks one by name; ``"auto"`` is PARDISO when it is installed.
+"""
 
 from __future__ import annotations
+
+import ctypes
+from collections.abc import Callable
 
 import numpy as np
 import scipy.sparse as sp
@@ -9,6 +23,9 @@ import scipy.sparse.linalg as spla
 DIAG_PIVOT_THRESHOLD = 0.01
 """SuperLU keeps the diagonal pivot unless it is below this fraction of the column's largest
 entry (1 = partial pivoting by rows, which breaks the symmetric fill-reducing ordering)."""
+
+SOLVERS = ("auto", "superlu", "pardiso")
+"""Names accepted by :func:`make_solver`."""
 
 
 def solve_symmetric(K: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
@@ -45,3 +62,189 @@ def solve_symmetric(K: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
         options={"SymmetricMode": True},
     )
     return lu.solve(np.asarray(rhs, dtype=float))
+
+
+def pardiso_available() -> bool:
+    """Whether ``pypardiso`` (and with it MKL's PARDISO) can be loaded."""
+    try:
+        _mkl_pardiso()
+    except (ImportError, OSError, AttributeError):
+        return False
+    return True
+
+
+def _mkl_pardiso():
+    """MKL's ``pardiso`` entry point, located through ``pypardiso`` (which finds ``mkl_rt``)."""
+    import pypardiso
+
+    lib = ctypes.CDLL(pypardiso.PyPardisoSolver().libmkl._name)
+    fn = lib.pardiso
+    i32 = ctypes.POINTER(ctypes.c_int32)
+    fn.argtypes = [ctypes.POINTER(ctypes.c_int64), i32, i32, i32, i32, i32, ctypes.c_void_p]
+    fn.argtypes += [i32, i32, i32, i32, i32, i32, ctypes.c_void_p, ctypes.c_void_p, i32]
+    fn.restype = None
+    return fn
+
+
+class PardisoLDLT:
+    """Symmetric indefinite direct solver (MKL PARDISO, matrix type -2), analysis reused.
+
+    Each call factors ``K`` (``L D L^T`` with Bunch-Kaufman pivoting, small pivots perturbed and
+    corrected by iterative refinement) and solves; the symbolic analysis (METIS nested
+    dissection, the factor's structure) is redone only when ``K``'s sparsity pattern changes.
+    Measured on the default 3D case's tangents (10,125 dofs, 1.56M nonzeros, one core):
+    analysis 0.08 s, factorisation 0.05 s, solve 0.02 s, against 0.235 s per SuperLU solve
+    (:func:`solve_symmetric`).  One instance holds MKL memory: keep it for a run, not shared
+    between processes.
+
+    Raises
+    ------
+    ImportError
+        ``pypardiso``/MKL is not installed.
+    """
+
+    MTYPE = -2
+
+    def __init__(self) -> None:
+        self._pardiso = _mkl_pardiso()
+        self._pt = np.zeros(64, dtype=np.int64)
+        self._iparm = np.zeros(64, dtype=np.int32)
+        ip = self._iparm
+        ip[0] = 1  # iparm supplied
+        ip[1] = 2  # METIS nested dissection
+        ip[9] = 8  # pivot perturbation 1e-8
+        ip[10] = 1  # symmetric scaling and weighted matching (indefinite systems)
+        ip[12] = 1
+        ip[34] = 1  # zero-based indices
+        self._pattern: tuple[np.ndarray, np.ndarray] | None = None  # K's (indptr, indices)
+        self._upper: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._analysed = False
+        self.analyses = 0
+        """Symbolic analyses done (a new sparsity pattern each)."""
+
+    name = "MKL PARDISO (symmetric indefinite LDL^T, METIS, analysis reused)"
+
+    def _call(self, phase: int, a: np.ndarray, b: np.ndarray, x: np.ndarray) -> None:
+        indptr, indices, _ = self._upper
+        n = indptr.size - 1
+        i32 = ctypes.POINTER(ctypes.c_int32)
+        err = ctypes.c_int32(0)
+
+        def ref(v: int):
+            return ctypes.byref(ctypes.c_int32(v))
+
+        self._pardiso(
+            self._pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)),
+            ref(1),
+            ref(1),
+            ref(self.MTYPE),
+            ref(phase),
+            ref(n),
+            a.ctypes.data,
+            indptr.ctypes.data_as(i32),
+            indices.ctypes.data_as(i32),
+            ctypes.POINTER(ctypes.c_int32)(),
+            ref(1),
+            self._iparm.ctypes.data_as(i32),
+            ref(0),
+            b.ctypes.data,
+            x.ctypes.data,
+            ctypes.byref(err),
+        )
+        if err.value != 0:
+            raise RuntimeError(f"PARDISO phase {phase} failed with error {err.value}")
+
+    def _set_pattern(self, K: sp.csr_matrix) -> None:
+        """Upper-triangle structure of ``K`` and the positions of its entries in ``K.data``."""
+        rows = np.repeat(np.arange(K.shape[0]), np.diff(K.indptr))
+        pos = np.flatnonzero(K.indices >= rows)
+        counts = np.bincount(rows[pos], minlength=K.shape[0])
+        indptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
+        indices = K.indices[pos].astype(np.int32)
+        if self._upper is None or not (
+            np.array_equal(indptr, self._upper[0]) and np.array_equal(indices, self._upper[1])
+        ):
+            self._release()
+            self._analysed = False
+        self._upper = (indptr, indices, pos)
+        self._pattern = (K.indptr.copy(), K.indices.copy())
+
+    def __call__(self, K: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
+        """Solve ``K x = rhs`` for a symmetric ``K`` (only its upper triangle is read).
+
+        Parameters
+        ----------
+        K : scipy.sparse matrix
+            Symmetric system matrix; every diagonal entry must be stored (a stored zero is
+            fine).
+        rhs : ndarray
+            Right-hand side.
+
+        Returns
+        -------
+        ndarray
+            The solution.
+        """
+        K = sp.csr_matrix(K)
+        if not K.has_sorted_indices:
+            K = K.sorted_indices()
+        same = self._pattern is not None and (
+            np.array_equal(K.indptr, self._pattern[0])
+            and np.array_equal(K.indices, self._pattern[1])
+        )
+        if not same:
+            self._set_pattern(K)
+        a = np.ascontiguousarray(K.data[self._upper[2]], dtype=float)
+        b = np.array(rhs, dtype=float, copy=True)
+        x = np.zeros_like(b)
+        if not self._analysed:
+            self._call(11, a, b, x)
+            self._analysed = True
+            self.analyses += 1
+        self._call(23, a, b, x)
+        return x
+
+    def _release(self) -> None:
+        if self._analysed and self._upper is not None:
+            z = np.zeros(1)
+            self._call(-1, z, z, z)
+            self._analysed = False
+
+    def __del__(self) -> None:
+        try:
+            self._release()
+        except Exception:  # noqa: BLE001 -- interpreter shutdown: MKL may be gone
+            pass
+
+
+def make_solver(name: str = "auto") -> Callable[[sp.spmatrix, np.ndarray], np.ndarray]:
+    """A linear solver ``solve(K, rhs) -> x`` for symmetric sparse tangents.
+
+    Parameters
+    ----------
+    name : str
+        ``"superlu"`` (:func:`solve_symmetric`), ``"pardiso"`` (:class:`PardisoLDLT`, needs
+        ``pypardiso``) or ``"auto"`` (PARDISO if installed, else SuperLU).
+
+    Returns
+    -------
+    callable
+        The solver; PARDISO's keeps its analysis between calls, so make one per run.
+
+    Raises
+    ------
+    ValueError
+        Unknown name.
+    ImportError
+        ``"pardiso"`` without ``pypardiso``.
+    """
+    if name not in SOLVERS:
+        raise ValueError(f"linear solver must be one of {SOLVERS}, got {name!r}")
+    if name == "pardiso" or (name == "auto" and pardiso_available()):
+        return PardisoLDLT()
+    return solve_symmetric
+
+
+def solver_name(solve: Callable) -> str:
+    """Human-readable name of a solver from :func:`make_solver` (for sidecars)."""
+    return getattr(solve, "name", "scipy SuperLU (MMD_AT_PLUS_A, symmetric mode)")

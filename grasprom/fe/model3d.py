@@ -31,6 +31,7 @@ forces in N, stresses in MPa.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -40,7 +41,7 @@ import scipy.sparse as sp
 from grasprom.fe.crease import crease_onset, hermite_energy, splice_crease
 from grasprom.fe.hyperelastic3d import invariants as _invariants
 from grasprom.fe.hyperelastic3d import pointwise3d, stress_and_tangent
-from grasprom.fe.linsolve import solve_symmetric
+from grasprom.fe.linsolve import make_solver, solver_name
 from grasprom.fe.materials import Material, get_material
 from grasprom.fe.mesh3d import Disc3D, MeshSpec3D, axial_nodes, discretise3d
 from grasprom.fe.model2d import (
@@ -240,28 +241,6 @@ def assemble(disc: Disc3D, material: Material, u: np.ndarray, tangent: bool = Tr
 
 
 # ----------------------------------------------------------------------------------------------
-# linear solver
-# ----------------------------------------------------------------------------------------------
-
-
-def _sparse_solve(K: sp.spmatrix, rhs: np.ndarray, solver: str = "auto") -> np.ndarray:
-    """Solve ``K x = rhs``: SuperLU in symmetric mode (:func:`grasprom.fe.linsolve.
-    solve_symmetric`), or pypardiso on request.
-
-    The tangents are symmetric in every contact mode (the rotated frame ``Q^T K Q``, the edge's
-    curvature term and the friction Hessian are).  Measured on the real tangents of the default
-    case (mr, t = 1.4, stick, 43 solves to gap 24 mm, shared machine): 0.47 s per solve with
-    ``spsolve`` (MMD(A^T+A), partial pivoting), 0.40 s in symmetric mode, solutions equal to
-    3e-11; earlier, PARDISO 0.47-0.84 s and COLAMD 0.47-1.9 s for the 8k-14k dof tangents.
-    """
-    if solver == "pardiso":
-        import pypardiso
-
-        return pypardiso.spsolve(sp.csr_matrix(K), rhs)
-    return solve_symmetric(K, rhs)
-
-
-# ----------------------------------------------------------------------------------------------
 # jaw geometry and contact constraints
 # ----------------------------------------------------------------------------------------------
 
@@ -341,7 +320,7 @@ class _Setup:
     base_fixed: np.ndarray  # symmetry, ends, plane strain
     settings: SolverSettings
     fscale: float
-    solver: str
+    solver: Callable[[sp.spmatrix, np.ndarray], np.ndarray]  # linsolve.make_solver
     disc_thickness: float
     mu: float = np.inf  # Coulomb coefficient (finite: contact="coulomb")
 
@@ -597,7 +576,7 @@ def _descent(st: _Setup, Kc: sp.csr_matrix, r: np.ndarray) -> np.ndarray:
     for _ in range(6):
         Ks = Kc if shift == 0.0 else Kc + shift * sp.identity(Kc.shape[0], format="csr")
         try:
-            du = _sparse_solve(Ks, -r, st.solver)
+            du = st.solver(Ks, -r)
         except RuntimeError:
             du = None
         if du is not None and np.all(np.isfinite(du)) and r @ du < 0:
@@ -712,7 +691,7 @@ def _predict(st: _Setup, u, K, fixed, jump):
     """Tangent predictor: the free dofs follow a prescribed jump to first order."""
     mask = fixed | (jump != 0.0)
     rhs = np.where(mask, 0.0, -(K @ jump))
-    du = _sparse_solve(_constrained(st, K, mask, False), rhs, st.solver)
+    du = st.solver(_constrained(st, K, mask, False), rhs)
     if np.all(np.isfinite(du)):
         up = u + np.where(mask, 0.0, du) + jump
         if np.isfinite(energy(st.disc, st.material, up)):
@@ -895,7 +874,7 @@ def _setup(spec: CaseSpec3D, solver: str) -> _Setup:
         base_fixed=_base_fixed(disc, spec.ends, spec.plane_strain),
         settings=spec.solver,
         fscale=material.mu * t * t,
-        solver=solver,
+        solver=make_solver(solver),
         disc_thickness=t,
     )
 
@@ -990,8 +969,9 @@ def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=N
     progress : callable, optional
         Called as ``progress(gap_mm, force_N)`` after each converged step.
     solver : str
-        Sparse solver: ``"auto"``/``"superlu"`` (scipy SuperLU) or ``"pardiso"`` (needs
-        the optional ``pypardiso``).
+        Sparse solver (:func:`grasprom.fe.linsolve.make_solver`): ``"auto"`` (MKL PARDISO if
+        ``pypardiso`` is installed, else scipy SuperLU), ``"superlu"`` or ``"pardiso"``.  The
+        choice changes the forces only by round-off (tested).
     on_step : callable, optional
         Called as ``on_step(disc, u, gap_mm, force_N)`` after each converged step with the
         discretisation and the nodal displacements (mm), e.g. a
@@ -1077,7 +1057,7 @@ def _info(spec, st: _Setup, table, reason, total_newton, n_fail, fail_log, h, t0
         "material_constants": st.material.constants(),
         "mesh": asdict(spec.mesh),
         "solver": asdict(spec.solver),
-        "linear_solver": _solver_name(st.solver),
+        "linear_solver": solver_name(st.solver),
         "contact": spec.contact,
         "tube_length_mm": spec.tube_length_mm,
         "ends": spec.ends,
@@ -1088,12 +1068,6 @@ def _info(spec, st: _Setup, table, reason, total_newton, n_fail, fail_log, h, t0
         + " dilatation/pressure condensed per element",
         "force_definition": "force_N = 4 x the 1/8 model's jaw reaction (N)",
     }
-
-
-def _solver_name(solver: str) -> str:
-    if solver == "pardiso":
-        return "pypardiso (MKL PARDISO)"
-    return "scipy SuperLU (MMD_AT_PLUS_A, symmetric mode)"
 
 
 def _validate_spec(spec: CaseSpec3D) -> None:
@@ -1125,7 +1099,7 @@ def solve_dirichlet(
     fixed: np.ndarray,
     values: np.ndarray,
     settings: SolverSettings | None = None,
-    solver: str = "superlu",
+    solver: str = "auto",
 ):
     """Static equilibrium with prescribed displacements only (no contact), e.g. for checks.
 
@@ -1149,7 +1123,8 @@ def solve_dirichlet(
     settings = settings or _default_solver()
     t = float(np.ptp(np.hypot(disc.X[:, 0], disc.X[:, 1])))
     jaw = JawProfile(0.0, 0.0)
-    st = _Setup(disc, material, jaw, False, fixed, settings, material.mu * t * t, solver, t)
+    solve = make_solver(solver)
+    st = _Setup(disc, material, jaw, False, fixed, settings, material.mu * t * t, solve, t)
     cons = (fixed, np.where(fixed, values, 0.0), np.zeros(0, dtype=np.int64))
     u, f, _, _, _ = _newton(st, cons[1].copy(), cons, 0.0, _no_contact(disc))
     return u, f
