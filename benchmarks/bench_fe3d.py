@@ -3,6 +3,7 @@
 Sections (run all, or name some on the command line)::
 
     python benchmarks/bench_fe3d.py default       # default case: wall time, dofs, 3D/2D ratio
+    python benchmarks/bench_fe3d.py solver        # default case, SuperLU (baseline) vs PARDISO
     python benchmarks/bench_fe3d.py cases         # t 0.8/1.4/2.0 x mr/le, stick and frictionless
     python benchmarks/bench_fe3d.py cases --materials mr --thickness 0.8 --json out.json
     python benchmarks/bench_fe3d.py contact       # stick vs frictionless at fixed gaps
@@ -49,9 +50,9 @@ def _force_at(table, gaps=GAPS, col: str = "force_N") -> dict:
     return out
 
 
-def _run(spec: CaseSpec3D, label: str):
+def _run(spec: CaseSpec3D, label: str, solver: str = "auto"):
     t0 = time.perf_counter()
-    res = run_case_3d(spec)
+    res = run_case_3d(spec, solver=solver)
     i = res.info
     print(
         f"[{label}] {res.status} ({i['status_reason']}): dofs {i['dofs']}, steps {i['steps']}, "
@@ -88,6 +89,30 @@ def bench_default() -> dict:
     _print_row("3D peak pressure MPa", _force_at(r3.table, col="peak_pressure_MPa"))
     _print_row("3D contact length mm", _force_at(r3.table, col="contact_length_mm"))
     return {"3d": f3, "2d": f2, "info": {k: r3.info[k] for k in ("dofs", "steps", "wall_time_s")}}
+
+
+def bench_solver() -> dict:
+    """Default case with each linear solver: SuperLU (the baseline) vs MKL PARDISO."""
+    res, wall = {}, {}
+    for name in ("superlu", "pardiso"):
+        t0 = time.perf_counter()
+        res[name] = _run(_base(), f"default case, {name}", solver=name)
+        wall[name] = time.perf_counter() - t0
+    a, b = res["superlu"].table["force_N"], res["pardiso"].table["force_N"]
+    same = len(a) == len(b)
+    diff = float(np.max(np.abs(b - a) / np.maximum(np.abs(a), 1e-12))) if same else float("nan")
+    print(
+        f"  wall time: SuperLU {wall['superlu']:.1f} s, PARDISO {wall['pardiso']:.1f} s, "
+        f"speed-up {wall['superlu'] / wall['pardiso']:.2f}; rows equal: {same}, "
+        f"max relative force difference {diff:.1e}",
+        flush=True,
+    )
+    return {
+        "wall_s": wall,
+        "speedup": wall["superlu"] / wall["pardiso"],
+        "max_rel_diff": diff,
+        "newton": {k: r.info["newton_iterations"] for k, r in res.items()},
+    }
 
 
 def bench_contact() -> dict:
@@ -329,6 +354,7 @@ def bench_shell() -> dict:
 SECTIONS = {
     "shell": bench_shell,
     "default": bench_default,
+    "solver": bench_solver,
     "cases": bench_cases,
     "contact": bench_contact,
     "laws": bench_laws,
