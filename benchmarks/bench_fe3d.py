@@ -11,6 +11,7 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py crease        # crease band: default vs small steps, dense
     python benchmarks/bench_fe3d.py length        # tube-length convergence (L, 2L)
     python benchmarks/bench_fe3d.py mesh          # mesh convergence at fixed gaps
+    python benchmarks/bench_fe3d.py meshband      # crease band and wall contact vs a fine mesh
     python benchmarks/bench_fe3d.py planestrain   # plane-strain 3D vs the 2D model, full stroke
     python benchmarks/bench_fe3d.py shell         # small-deflection stiffness vs shell theory
 
@@ -292,6 +293,55 @@ def bench_mesh() -> dict:
     return {"default": fd, "fine": ff}
 
 
+BAND_GAPS = (10.0, 6.0, 5.0, 4.5, 4.0, 3.5, 3.0, 2.9, 2.8, 2.75, 2.7, 2.65, 2.6, 2.5)
+RISE_FORCES = (5.0, 10.0, 20.0, 50.0, 100.0)
+
+
+def _gap_at_force(table, forces=RISE_FORCES, below: float = 3.2) -> dict:
+    """Gap (mm) at which the wall-contact rise (gaps < ``below``) reaches each force (N)."""
+    t = table[table["gap_mm"] < below].sort_values("force_N")
+    return {f: float(np.interp(f, t["force_N"], t["gap_mm"])) for f in forces}
+
+
+def bench_meshband(tube_length: float = 60.0) -> dict:
+    """Crease band and walls meeting (mr, t = 1.4, stick, 60 mm tube) on meshes against a fine
+    reference (2 x 24 x (8 + 3), small steps): force at fixed gaps, gap at equal force."""
+    small = {"dh_max_mm": 0.25, "max_rel_force_step": 0.1}
+    variants = {  # label: (mesh changes, solver changes)
+        "reference 2x24x8, small steps": ({"n_circ": 24, "n_jaw": 8}, small),
+        "default 2x12x4": ({}, {}),
+        "default, small steps": ({}, small),
+        "2x12x4 graded 6:1": ({"grading": 6.0}, {}),
+        "2x16x6 graded 6:1": ({"n_circ": 16, "n_jaw": 6, "grading": 6.0}, {}),
+    }
+    tables, out = {}, {}
+    for label, (mk, sk) in variants.items():
+        spec = CaseSpec3D("mr", T, tube_length_mm=tube_length, closed_gap_mm=2.45)
+        spec = replace(spec, mesh=replace(spec.mesh, n_free=3, **mk))
+        spec = replace(spec, solver=replace(spec.solver, land_on_gaps_mm=BAND_GAPS, **sk))
+        r = _run(spec, label)
+        tables[label] = r.table
+        out[label] = {"force_N": _force_at(r.table, BAND_GAPS), "info": r.info}
+    ref_label = next(iter(variants))
+    ref = out[ref_label]["force_N"]
+    _header(BAND_GAPS)
+    for label, v in out.items():
+        _print_row(label, v["force_N"], "{:9.3f}")
+    for label, v in out.items():
+        rel = {g: v["force_N"][g] / ref[g] - 1 for g in BAND_GAPS}
+        _print_row(f"{label[:20]} / ref - 1", rel, "{:+9.3f}")
+        v["rel_to_reference"] = rel
+    gref = _gap_at_force(tables[ref_label])
+    print("  gap at equal force on the wall-contact rise, minus the reference's (um):")
+    print(f"  {'force (N)':<28}" + " ".join(f"{f:9.0f}" for f in RISE_FORCES))
+    for label in out:
+        g = _gap_at_force(tables[label])
+        dg = {f: 1000.0 * (g[f] - gref[f]) for f in RISE_FORCES}
+        _print_row(label, dg, "{:+9.1f}")
+        out[label]["gap_shift_um"] = dg
+    return {k: {kk: vv for kk, vv in v.items() if kk != "info"} for k, v in out.items()}
+
+
 def bench_planestrain(nc: int = 32) -> dict:
     """Plane-strain 3D (u_z = 0, jaw as long as the tube) vs the 2D model, full stroke."""
     gaps = (20.0, 10.0, 6.0, 4.0, 3.2, 2.9)
@@ -363,6 +413,7 @@ SECTIONS = {
     "crease": bench_crease,
     "length": bench_length,
     "mesh": bench_mesh,
+    "meshband": bench_meshband,
     "planestrain": bench_planestrain,
 }
 
