@@ -11,6 +11,7 @@ steps comes from :func:`hermite_energy` (jaw and floor are rigid and do no work,
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -44,6 +45,25 @@ def hermite_energy(branch: list[tuple[float, float, float]], h: float) -> float:
     return h00 * e0 + h10 * d * (-f0) + h01 * e1 + h11 * d * (-f1)
 
 
+@dataclass(frozen=True)
+class CreaseOnset:
+    """Result of :func:`crease_onset`.
+
+    Attributes
+    ----------
+    states : list of (h, state, newton_iterations)
+        The creased states continued back, from the largest jaw height ``h`` (mm) down to just
+        above the snap; empty if the snapped state has no less energy than the branch one back
+        step up.
+    newton_iterations : int
+        Every Newton iteration the placement spent, the rejected probe and the bisections
+        included (a solve that fails raises and leaves no count).
+    """
+
+    states: list[tuple[float, Any, int]] = field(default_factory=list)
+    newton_iterations: int = 0
+
+
 def crease_onset(
     solve: Callable[[Any, float], tuple[Any, int]],
     below: Callable[[Any, float], bool],
@@ -54,7 +74,7 @@ def crease_onset(
     landing: Sequence[float] = (),
     errors: tuple[type[BaseException], ...] = (ArithmeticError,),
     n_bisect: int = 10,
-) -> list[tuple[float, Any, int]]:
+) -> CreaseOnset:
     """Continue a snapped (creased) state back to larger jaw heights while it stays below the
     smooth branch in energy; the crossing is the Maxwell point.
 
@@ -81,12 +101,13 @@ def crease_onset(
 
     Returns
     -------
-    list of (h, state, newton_iterations)
-        From the largest ``h`` down to just above ``h_snap``; empty if the snapped state has no
-        less energy than the branch one back step up (a force drop along one branch, not a jump
-        to another).
+    CreaseOnset
+        The states from the largest ``h`` down to just above ``h_snap`` (none if the snapped
+        state has no less energy than the branch one back step up: a force drop along one
+        branch, not a jump to another) and the Newton iterations spent.
     """
     out: list[tuple[float, Any, int]] = []
+    spent_total = 0
     cur, h = snapped, h_snap
     while h + dh <= h_top:
         h_next = min([hc for hc in landing if h + 1e-12 < hc < h + dh], default=h + dh)
@@ -94,6 +115,7 @@ def crease_onset(
             nxt, it = solve(cur, h_next)
         except errors:
             break
+        spent_total += it
         if not below(nxt, h_next):
             if not out:
                 break
@@ -105,6 +127,7 @@ def crease_onset(
                 except errors:
                     break
                 spent += it
+                spent_total += it
                 if below(sm, mid):
                     lo, lo_state = mid, sm
                 else:
@@ -115,11 +138,11 @@ def crease_onset(
         out.append((h_next, nxt, it))
         cur, h = nxt, h_next
     out.sort(key=lambda r: -r[0])
-    return out
+    return CreaseOnset(out, spent_total)
 
 
 def splice_crease(
-    rows: list, branch: list, back: list[tuple[float, Any, int]], entry: Callable
+    rows: list, branch: list, back: CreaseOnset, entry: Callable
 ) -> tuple[list, list]:
     """Replace the rows (and ``branch`` entries) below the crossing ``back[0]`` by the creased
     states of :func:`crease_onset`; unchanged if ``back`` is empty.
@@ -129,7 +152,7 @@ def splice_crease(
     rows, branch : list
         The table rows and the ``(h, energy, force)`` entries so far, one per row, in
         decreasing jaw height ``h`` (mm).
-    back : list of (h, state, newton_iterations)
+    back : CreaseOnset
         :func:`crease_onset`'s result.
     entry : callable
         ``entry(h, state, newton_iterations) -> (row, branch_entry)`` of a creased state.
@@ -138,12 +161,12 @@ def splice_crease(
     -------
     rows, branch : list
     """
-    if not back:
+    if not back.states:
         return rows, branch
-    keep = [k for k, b in enumerate(branch) if b[0] > back[0][0]]
+    keep = [k for k, b in enumerate(branch) if b[0] > back.states[0][0]]
     rows = [rows[k] for k in keep]
     branch = [branch[k] for k in keep]
-    for hb, sb, itb in back:
+    for hb, sb, itb in back.states:
         row, b = entry(hb, sb, itb)
         rows.append(row)
         branch.append(b)

@@ -36,7 +36,7 @@ import numpy as np
 import pandas as pd
 import scipy.sparse as sp
 
-from grasprom.fe.crease import crease_onset, hermite_energy, splice_crease
+from grasprom.fe.crease import CreaseOnset, crease_onset, hermite_energy, splice_crease
 from grasprom.fe.linsolve import solve_symmetric
 from grasprom.fe.materials import Material, cofactor, get_material, pointwise_tangent
 
@@ -977,7 +977,7 @@ def _crease_onset(
     return crease_onset(solve, below, snapped, h_snap, dh, 2.0 * t, landing, _STEP_ERRORS, 10)
 
 
-def _splice_crease(disc, material, rows: list, branch: list, back: list, R: float, scale_N):
+def _splice_crease(disc, material, rows: list, branch: list, back: CreaseOnset, R: float, scale_N):
     """Replace the rows (and ``branch`` entries) below the Maxwell point ``back[0]`` by the
     creased states of :func:`_crease_onset` (:func:`grasprom.fe.crease.splice_crease`)."""
 
@@ -1098,7 +1098,7 @@ def run_case(spec: CaseSpec, progress=None) -> CaseResult:
         if s.maxwell_crease and t < h_new < 2.0 * t and row["force_N"] < force_prev * (1 - 1e-4):
             back = _crease_onset(disc, material, new_state, h_new, branch, t, s, fscale, landing)
             rows, branch = _splice_crease(disc, material, rows, branch, back, R, scale_N)
-            total_newton += sum(b[2] for b in back)
+            total_newton += back.newton_iterations
         state = new_state
         h = h_new
         rows.append(row)

@@ -38,7 +38,7 @@ import numpy as np
 import pandas as pd
 import scipy.sparse as sp
 
-from grasprom.fe.crease import crease_onset, hermite_energy, splice_crease
+from grasprom.fe.crease import CreaseOnset, crease_onset, hermite_energy, splice_crease
 from grasprom.fe.hyperelastic3d import invariants as _invariants
 from grasprom.fe.hyperelastic3d import pointwise3d, stress_and_tangent
 from grasprom.fe.linsolve import make_solver, solver_name
@@ -946,7 +946,7 @@ def _crease_onset(st: _Setup, snapped, h_snap: float, branch, t: float, landing)
     return crease_onset(solve, below, snapped, h_snap, dh, 2.0 * t, landing, _STEP_ERRORS, 8)
 
 
-def _splice_crease(spec: CaseSpec3D, st: _Setup, rows: list, branch: list, back: list):
+def _splice_crease(spec: CaseSpec3D, st: _Setup, rows: list, branch: list, back: CreaseOnset):
     """Replace the rows (and ``branch`` entries) below the crossing ``back[0]`` by the creased
     states of :func:`_crease_onset` (:func:`grasprom.fe.crease.splice_crease`)."""
 
@@ -1019,7 +1019,7 @@ def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=N
         if maxwell and t < h < 2.0 * t and row["force_N"] < force_prev * (1 - 1e-4):
             back = _crease_onset(st, (u, f, K, c), h, branch, t, landing)
             rows, branch = _splice_crease(spec, st, rows, branch, back)
-            total_newton += sum(b[2] for b in back)
+            total_newton += back.newton_iterations
         rows.append(row)
         e = energy(st.disc, st.material, u) if maxwell else np.nan  # only the crease needs it
         branch.append((h, e, 0.25 * row["force_N"]))

@@ -46,11 +46,17 @@ def test_crease_onset_finds_the_energy_crossing_of_two_analytic_branches():
         return E_c(state) < E_s(h)
 
     dh = 0.05
-    out = crease_onset(solve, below, 1.5, 1.5, dh, h_top=2.8, landing=(2.0,), n_bisect=10)
+    res = crease_onset(solve, below, 1.5, 1.5, dh, h_top=2.8, landing=(2.0,), n_bisect=10)
+    out = res.states
     hs = [h for h, _, _ in out]
     assert hs == sorted(hs, reverse=True) and hs[-1] > 1.5
     assert 2.0 in hs  # landed on the requested jaw height
     assert hs[0] == pytest.approx(h_star, abs=dh / 2**10)
     assert hs[0] <= h_star
-    # a drop that is no jump to a lower branch: nothing to place
-    assert crease_onset(solve, lambda s, h: False, 1.5, 1.5, dh, 2.8) == []
+    # every solve is counted (2 iterations each): the accepted back steps, the rejected probe
+    # past the crossing and the 10 bisections
+    n_steps = len(out) - 1  # the last state is the bisected crossing
+    assert res.newton_iterations == 2 * (n_steps + 1 + 10)
+    # a drop that is no jump to a lower branch: nothing to place, the probe still counted
+    none = crease_onset(solve, lambda s, h: False, 1.5, 1.5, dh, 2.8)
+    assert none.states == [] and none.newton_iterations == 2
