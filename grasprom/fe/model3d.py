@@ -400,6 +400,63 @@ class CoulombFriction:
         return sp.csr_matrix((data, disc.indices, disc.indptr), shape=K.shape)
 
 
+@dataclass(frozen=True)
+class ProximalTerm:
+    """Proximal-point term ``c/2 |u - u_ref|^2`` (N mm) of a relaxation step (:func:`_relax`).
+
+    Parameters
+    ----------
+    c : float
+        Its stiffness (N/mm), added to every diagonal entry of the tangent.
+    u_ref : ndarray
+        The displacements it pulls toward (mm).
+    """
+
+    c: float
+    u_ref: np.ndarray
+
+    def energy(self, X, u) -> float:
+        """``c/2 |u - u_ref|^2`` (N mm)."""
+        d = u - self.u_ref
+        return 0.5 * self.c * float(d @ d)
+
+    def force(self, X, u) -> np.ndarray:
+        """Its gradient (N)."""
+        return self.c * (u - self.u_ref)
+
+    def add_tangent(self, disc: Disc3D, K: sp.csr_matrix, u) -> sp.csr_matrix:
+        """``K + c I`` on the discretisation's CSR pattern."""
+        data = K.data.copy()
+        data[disc.diag_pos] += self.c
+        return sp.csr_matrix((data, disc.indices, disc.indptr), shape=K.shape)
+
+
+@dataclass(frozen=True)
+class _Potentials:
+    """Sum of extra potentials (friction, proximal) with the interface of each."""
+
+    parts: tuple
+
+    @staticmethod
+    def of(*parts):
+        """The sum of the parts that are not None (None if there are none)."""
+        kept = tuple(p for p in parts if p is not None)
+        if not kept:
+            return None
+        return kept[0] if len(kept) == 1 else _Potentials(kept)
+
+    def energy(self, X, u) -> float:
+        return sum(p.energy(X, u) for p in self.parts)
+
+    def force(self, X, u) -> np.ndarray:
+        return sum(p.force(X, u) for p in self.parts)
+
+    def add_tangent(self, disc: Disc3D, K: sp.csr_matrix, u) -> sp.csr_matrix:
+        for p in self.parts:
+            K = p.add_tangent(disc, K, u)
+        return K
+
+
 def _assemble_x(st: _Setup, u, fric: CoulombFriction | None, tangent: bool = True):
     """Internal force plus friction force (N) and tangent (N/mm); ``(None, None)`` if inverted."""
     f, K, _ = assemble(st.disc, st.material, u, tangent)
@@ -762,8 +819,9 @@ def _slide_anchors(st: _Setup, c: _Contact, u, h) -> np.ndarray:
     return out
 
 
-def _solve_step(st: _Setup, u, K_old, c: _Contact, h: float):
-    """Equilibrium at jaw height ``h`` (mm) with the active-set loop.
+def _solve_step(st: _Setup, u, K_old, c: _Contact, h: float, prox: ProximalTerm | None = None):
+    """Equilibrium at jaw height ``h`` (mm) with the active-set loop (of the energy plus
+    ``prox``, if given: a step of :func:`_relax`).
 
     Inexact passes: while the active set changes, Newton stops at ``ACTIVE_SET_RTOL``; once a
     pass leaves the set unchanged, the same set is solved to ``SolverSettings.rtol`` and
@@ -781,7 +839,7 @@ def _solve_step(st: _Setup, u, K_old, c: _Contact, h: float):
         jump = _enforce(st, u, fixed, values, fr, h) - u
         if K_old is not None and np.any(jump != 0.0):
             u = _predict(st, u, K_old, fixed, jump)
-        fric = CoulombFriction.of(st, c, h)
+        fric = _Potentials.of(CoulombFriction.of(st, c, h), prox)
         cons = (fixed, values, fr)
         u, f, K, it, event = _newton(st, u, cons, h, c, None if exact else loose, fric)
         iters += it
@@ -959,6 +1017,43 @@ def _splice_crease(spec: CaseSpec3D, st: _Setup, rows: list, branch: list, back:
     return splice_crease(rows, branch, back, entry)
 
 
+def _relax(st: _Setup, u, K, c: _Contact, h: float):
+    """Equilibrium at jaw height ``h`` (mm) past a snap, by proximal-point iteration (as the 2D
+    model's ``_relax``): each step minimises ``energy + c/2 |u - u_k|^2`` (:class:`ProximalTerm`,
+    strongly convex for ``c`` above the negative curvature) with the contact set updated, then
+    the plain problem is tried; ``c`` shrinks while the steps converge.  Returns
+    :func:`_solve_step`'s ``(u, f, K, contact, newton_iterations)``, the proximal steps'
+    iterations included; raises :class:`_NewtonFailure` if it does not land.
+    """
+    cp = 1e-2 * float(np.abs(K.diagonal()).mean())
+    spent = 0
+    for _ in range(st.settings.max_relax):
+        try:
+            u, _, K, c, it = _solve_step(st, u, K, c, h, ProximalTerm(cp, u.copy()))
+        except _STEP_ERRORS:
+            cp *= 4.0
+            continue
+        spent += it
+        try:
+            u, f, K, c, it = _solve_step(st, u, K, c, h)
+        except _STEP_ERRORS:
+            cp *= 0.7
+            continue
+        return u, f, K, c, spent + it
+    raise _NewtonFailure(f"no equilibrium within {st.settings.max_relax} proximal steps")
+
+
+def _advance(st: _Setup, u, K, c: _Contact, h: float, dh: float):
+    """The step to jaw height ``h`` (mm): Newton with the active set, and if a jaw step ``dh``
+    (mm) of at most ``SolverSettings.relax_below_mm`` fails, the snap by :func:`_relax`."""
+    try:
+        return _solve_step(st, u, K, c, h)
+    except _STEP_ERRORS:
+        if dh > st.settings.relax_below_mm:
+            raise
+    return _relax(st, u, K, c, h)
+
+
 def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=None) -> CaseResult:
     """Run one 3D clamping case from first touch to the closed gap or the force cap.
 
@@ -1006,7 +1101,7 @@ def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=N
             reason = f"step below dh_min_mm={s.dh_min_mm} at gap {2 * h:.4f} mm"
             break
         try:
-            u_new, f_new, K_new, c_new, iters = _solve_step(st, u, K, c, h - dh)
+            u_new, f_new, K_new, c_new, iters = _advance(st, u, K, c, h - dh, dh)
         except _STEP_ERRORS as exc:
             n_fail += 1
             fail_log.append({"gap_mm": 2 * (h - dh), "dh_mm": dh, "reason": str(exc)})

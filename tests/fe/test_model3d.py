@@ -387,3 +387,49 @@ def test_coulomb_friction_tangent_is_its_force_derivative_on_the_mesh_pattern():
     e[i] = h
     fd = (fric.energy(disc.X, u + e) - fric.energy(disc.X, u - e)) / (2 * h)
     assert fric.force(disc.X, u)[i] == pytest.approx(fd, rel=1e-6) and e0 > 0
+
+
+def test_proximal_term_gradient_and_tangent():
+    """``c/2 |u - u_ref|^2``: force = central differences of the energy, tangent = K + c I on
+    the discretisation's pattern (K's explicit zeros kept)."""
+    from grasprom.fe.model3d import ProximalTerm
+
+    z = axial_nodes(2.0, 2.0, 2, 0)
+    disc = discretise3d(15.0, 1.4, z, MeshSpec3D(n_layers=1, n_circ=3))
+    u = np.zeros(disc.ndof)
+    u[1::3] = -0.01 * disc.X[:, 1]
+    _, K, _ = assemble(disc, get_material("mr"), u)
+    rng = np.random.default_rng(4)
+    prox = ProximalTerm(2.5, u + 1e-3 * rng.standard_normal(disc.ndof))
+    Kp = prox.add_tangent(disc, K, u)
+    assert np.array_equal(Kp.indices, K.indices)
+    np.testing.assert_allclose((Kp - K).toarray(), 2.5 * np.eye(disc.ndof), atol=1e-12)
+    i, h = 7, 1e-6
+    e = np.zeros(disc.ndof)
+    e[i] = h
+    fd = (prox.energy(disc.X, u + e) - prox.energy(disc.X, u - e)) / (2 * h)
+    assert prox.force(disc.X, u)[i] == pytest.approx(fd, rel=1e-6)
+
+
+def test_proximal_relaxation_lands_on_the_newton_equilibrium():
+    """The snap solver (proximal-point steps, then the plain problem) started from the undeformed
+    tube lands on the equilibrium Newton reaches by itself at the same jaw height: the same jaw
+    force to 1e-7 (it solves the original problem, the proximal term only steers the path)."""
+    from grasprom.fe import model3d
+
+    spec = CaseSpec3D(
+        "mr", 1.4, tube_length_mm=30.0, mesh=MeshSpec3D(n_layers=1, n_circ=8, n_jaw=3, n_free=3)
+    )
+    st = model3d._setup(spec, "auto")
+    R, h = 15.0, 14.4
+    u0 = np.zeros(st.disc.ndof)
+    _, K0, _ = assemble(st.disc, st.material, u0)
+    newton = model3d._solve_step(st, u0, K0, model3d._initial_contact(st, R), h)
+    relaxed = model3d._relax(st, u0, K0, model3d._initial_contact(st, R), h)
+
+    def jaw_force(res):
+        u, f, _, c, _ = res
+        return model3d.contact_measures(st, c, u, f, h)["force_q"]
+
+    assert jaw_force(newton) > 0
+    assert jaw_force(relaxed) == pytest.approx(jaw_force(newton), rel=1e-7)
