@@ -74,7 +74,8 @@ def pardiso_available() -> bool:
 
 
 def _mkl_pardiso():
-    """MKL's ``pardiso`` entry point, located through ``pypardiso`` (which finds ``mkl_rt``)."""
+    """MKL's ``pardiso`` entry point and its thread-count setter (``mkl_set_num_threads_local``),
+    located through ``pypardiso`` (which finds ``mkl_rt``)."""
     import pypardiso
 
     lib = ctypes.CDLL(pypardiso.PyPardisoSolver().libmkl._name)
@@ -83,7 +84,10 @@ def _mkl_pardiso():
     fn.argtypes = [ctypes.POINTER(ctypes.c_int64), i32, i32, i32, i32, i32, ctypes.c_void_p]
     fn.argtypes += [i32, i32, i32, i32, i32, i32, ctypes.c_void_p, ctypes.c_void_p, i32]
     fn.restype = None
-    return fn
+    threads = lib.MKL_Set_Num_Threads_Local
+    threads.argtypes = [ctypes.c_int]
+    threads.restype = ctypes.c_int
+    return fn, threads
 
 
 class PardisoLDLT:
@@ -97,6 +101,15 @@ class PardisoLDLT:
     (:func:`solve_symmetric`).  One instance holds MKL memory: keep it for a run, not shared
     between processes.
 
+    PARDISO runs on one thread (``threads``): with several, its parallel reductions change the
+    round-off from run to run, and a case through the crease band (a snap) can then take
+    another path; one thread keeps a case reproducible to the bit.
+
+    Parameters
+    ----------
+    threads : int
+        MKL threads for the factorisation and solve (set thread-locally around each call).
+
     Raises
     ------
     ImportError
@@ -105,8 +118,9 @@ class PardisoLDLT:
 
     MTYPE = -2
 
-    def __init__(self) -> None:
-        self._pardiso = _mkl_pardiso()
+    def __init__(self, threads: int = 1) -> None:
+        self._pardiso, self._set_threads = _mkl_pardiso()
+        self.threads = int(threads)
         self._pt = np.zeros(64, dtype=np.int64)
         self._iparm = np.zeros(64, dtype=np.int32)
         ip = self._iparm
@@ -197,11 +211,15 @@ class PardisoLDLT:
         a = np.ascontiguousarray(K.data[self._upper[2]], dtype=float)
         b = np.array(rhs, dtype=float, copy=True)
         x = np.zeros_like(b)
-        if not self._analysed:
-            self._call(11, a, b, x)
-            self._analysed = True
-            self.analyses += 1
-        self._call(23, a, b, x)
+        previous = self._set_threads(self.threads)
+        try:
+            if not self._analysed:
+                self._call(11, a, b, x)
+                self._analysed = True
+                self.analyses += 1
+            self._call(23, a, b, x)
+        finally:
+            self._set_threads(previous)
         return x
 
     def _release(self) -> None:
