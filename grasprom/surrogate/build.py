@@ -263,8 +263,35 @@ def contact_gap(
     return float(g[i])
 
 
+def snap_interior(gap_mm: np.ndarray, force_N: np.ndarray) -> np.ndarray:
+    """Interior points of the snaps of a force-gap curve (mask).
+
+    A snap (the wall creasing or folding over in the FE model) is a force drop as the gap
+    closes, i.e. ``force_N`` rising with ``gap_mm``.  Where one spans several FE steps, the
+    points inside it are flagged, so the table keeps the snap as one segment: PCHIP gives its
+    two end nodes a zero slope, and no node of the table carries a negative stiffness.
+
+    Parameters
+    ----------
+    gap_mm : ndarray
+        Strictly increasing gaps (mm).
+    force_N : ndarray
+        Forces (N).
+
+    Returns
+    -------
+    ndarray of bool
+        True at the points to leave out.
+    """
+    up = np.diff(force_N) > 0  # interval i: force rises with the gap (a drop on closing)
+    inner = np.zeros(force_N.size, dtype=bool)
+    inner[1:-1] = up[:-1] & up[1:]
+    return inner
+
+
 def reduce_case(case: FECase, params: BuildParams) -> Curve:
-    """Adaptive PCHIP table of one FE case (see :func:`select_nodes`).
+    """Adaptive PCHIP table of one FE case (see :func:`select_nodes`); the interior points of
+    a snap over several FE steps are left out (:func:`snap_interior`).
 
     Parameters
     ----------
@@ -280,6 +307,8 @@ def reduce_case(case: FECase, params: BuildParams) -> Curve:
     order = np.argsort(case.gap_mm)
     x = case.gap_mm[order]
     y = case.force_N[order]
+    keep = ~snap_interior(x, y)
+    x, y = x[keep], y[keep]
     idx, err = select_nodes(x, y, params.tol, params.force_ref_N)
     d = pchip_derivatives(x[idx], y[idx])
     gc = contact_gap(x, y, case.thickness_mm, params.contact_gap_method, params.steep_N_per_mm)
