@@ -184,21 +184,9 @@ class PardisoLDLT:
         self._pattern = (K.indptr.copy(), K.indices.copy())
 
     def __call__(self, K: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
-        """Solve ``K x = rhs`` for a symmetric ``K`` (only its upper triangle is read).
-
-        Parameters
-        ----------
-        K : scipy.sparse matrix
-            Symmetric system matrix; every diagonal entry must be stored (a stored zero is
-            fine).
-        rhs : ndarray
-            Right-hand side.
-
-        Returns
-        -------
-        ndarray
-            The solution.
-        """
+        """Solve ``K x = rhs`` as :func:`solve_symmetric` does, reading only the upper triangle
+        of the symmetric ``K`` (scipy sparse; every diagonal entry stored, a stored zero is
+        fine); returns the solution, raises RuntimeError if PARDISO reports an error."""
         K = sp.csr_matrix(K)
         if not K.has_sorted_indices:
             K = K.sorted_indices()
