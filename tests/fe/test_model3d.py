@@ -441,9 +441,9 @@ def test_3d_crease_is_placed_where_the_work_balances_the_strain_energy():
     normal, nothing dissipates, so the jaw's work equals the strain energy on an equilibrium
     path).  Followed without the rule, the smooth fold snaps to the creased state inside the
     band 2t..4t and releases energy: the work (trapezoid rule over the rows) then exceeds the
-    final strain energy by more than 0.5 % (measured 0.95 %) beyond the quadrature error it had
+    final strain energy by more than 0.5 % (measured 1.39 %) beyond the quadrature error it had
     before the band.  With the rule the force drops at a larger gap and the balance stays at
-    that error within 0.3 % (measured -0.15 %): the crease is where the two states' energies
+    that error within 0.3 % (measured -0.08 %): the crease is where the two states' energies
     are equal.  Both end in the same state.
     """
     t = 1.4
@@ -451,7 +451,7 @@ def test_3d_crease_is_placed_where_the_work_balances_the_strain_energy():
     mat = get_material("mr")
     out = {}
     for maxwell in (False, True):
-        spec = CaseSpec3D("mr", t, tube_length_mm=30.0, closed_gap_mm=2.9, mesh=mesh)
+        spec = CaseSpec3D("mr", t, tube_length_mm=30.0, closed_gap_mm=4.2, mesh=mesh)
         spec = replace(spec, solver=replace(spec.solver, maxwell_crease=maxwell))
         energies = {}
 
@@ -470,6 +470,6 @@ def test_3d_crease_is_placed_where_the_work_balances_the_strain_energy():
         out[maxwell] = (g[drops[0]], excess_end - excess_before, energies[g[-1]])
     (snap, jump0, e0), (placed, jump1, e1) = out[False], out[True]
     assert 2 * t < snap < placed <= 4 * t + 1e-9
-    assert jump0 > 0.005  # the snap's released energy (measured 0.95 %), still in the work
+    assert jump0 > 0.005  # the snap's released energy (measured 1.39 %), still in the work
     assert abs(jump1) < 0.003
     assert e1 == pytest.approx(e0, rel=1e-3)
