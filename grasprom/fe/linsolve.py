@@ -179,7 +179,6 @@ class PardisoLDLT:
             np.array_equal(indptr, self._upper[0]) and np.array_equal(indices, self._upper[1])
         ):
             self._release()
-            self._analysed = False
         self._upper = (indptr, indices, pos)
         self._pattern = (K.indptr.copy(), K.indices.copy())
 
@@ -246,9 +245,14 @@ def make_solver(name: str = "auto") -> Callable[[sp.spmatrix, np.ndarray], np.nd
     """
     if name not in SOLVERS:
         raise ValueError(f"linear solver must be one of {SOLVERS}, got {name!r}")
-    if name == "pardiso" or (name == "auto" and pardiso_available()):
+    if name == "superlu":
+        return solve_symmetric
+    try:
         return PardisoLDLT()
-    return solve_symmetric
+    except (ImportError, OSError, AttributeError):
+        if name == "pardiso":
+            raise
+        return solve_symmetric
 
 
 def solver_name(solve: Callable) -> str:

@@ -457,8 +457,9 @@ class _Potentials:
         return K
 
 
-def _assemble_x(st: _Setup, u, fric: CoulombFriction | None, tangent: bool = True):
-    """Internal force plus friction force (N) and tangent (N/mm); ``(None, None)`` if inverted."""
+def _assemble_x(st: _Setup, u, fric, tangent: bool = True):
+    """Internal force plus the extra potential's force (N) and tangent (N/mm); ``(None, None)``
+    if inverted.  ``fric``: :class:`CoulombFriction`, :class:`ProximalTerm`, their sum or None."""
     f, K, _ = assemble(st.disc, st.material, u, tangent)
     if f is None or fric is None:
         return f, K
@@ -468,8 +469,8 @@ def _assemble_x(st: _Setup, u, fric: CoulombFriction | None, tangent: bool = Tru
     return f, K
 
 
-def _energy_x(st: _Setup, u, fric: CoulombFriction | None) -> float:
-    """Strain energy plus the friction potential (N mm)."""
+def _energy_x(st: _Setup, u, fric) -> float:
+    """Strain energy plus the extra potential (N mm; ``fric`` as in :func:`_assemble_x`)."""
     e = energy(st.disc, st.material, u)
     return e if fric is None or not np.isfinite(e) else e + fric.energy(st.disc.X, u)
 
