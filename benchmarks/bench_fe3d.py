@@ -13,6 +13,7 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py mesh          # mesh convergence at fixed gaps
     python benchmarks/bench_fe3d.py meshband      # crease band and wall contact vs a fine mesh
     python benchmarks/bench_fe3d.py planestrain   # plane-strain 3D vs the 2D model, full stroke
+    python benchmarks/bench_fe3d.py element       # crease band in plane strain: beta, cross-section
     python benchmarks/bench_fe3d.py shell         # small-deflection stiffness vs shell theory
 
 Forces in N, gaps in mm.  t = 1.4 mm, Mooney-Rivlin, unless stated.  Timings are wall-clock on
@@ -371,6 +372,48 @@ def bench_planestrain(nc: int = 32) -> dict:
     return {"3d": f3, **{f"2d_{k}": v for k, v in res2.items()}}
 
 
+#: crease band at t = 1.4 (2t..4t) with the bending point 10 and the walls meeting 2t + 0.05
+BAND_GAPS = (10.0, 6.0, 5.5, 5.0, 4.5, 4.0, 3.5, 3.2, 3.0, 2.9, 2.85)
+#: (label, n_layers, n_circ, grading, radial_grading, beta): the spurious instability of the
+#: mixed element (beta 0, 0.01) and the cross-sections, coarse to the 2x refinement
+ELEMENT_CASES = (
+    ("4x24 g8 beta 0", 4, 24, 8.0, 1.0, 0.0),
+    ("4x24 g8 beta 0.01", 4, 24, 8.0, 1.0, 0.01),
+    ("4x24 g8 beta 0.02", 4, 24, 8.0, 1.0, 0.02),
+    ("4x24 g8 beta 0.05", 4, 24, 8.0, 1.0, 0.05),
+    ("2x12 g2 beta 0", 2, 12, 2.0, 1.0, 0.0),
+    ("2x12 g2 beta 0.05", 2, 12, 2.0, 1.0, 0.05),
+    ("2x24 g8 beta 0.05", 2, 24, 8.0, 1.0, 0.05),
+    ("4x48 g8.35 beta 0.02", 4, 48, 8.35, 1.0, 0.02),
+)
+
+
+def bench_element() -> dict:
+    """Crease band in plane strain (frictionless, mr t = 1.4): 3D Q2/P1 vs the 2D model."""
+    gaps, L = BAND_GAPS, 2.0
+    ref = {}
+    for label, mesh in (("2D default", MeshSpec()), ("2D refined", MeshSpec().refined(2))):
+        s2 = CaseSpec("mr", T, closed_gap_mm=2.8, mesh=mesh.for_wall(15.0 - T, T))
+        t0 = time.perf_counter()
+        r2 = run_case(replace(s2, solver=SolverSettings(land_on_gaps_mm=gaps)))
+        print(f"[{label}] {r2.status}, {time.perf_counter() - t0:.0f} s", flush=True)
+        ref[label] = _force_at(r2.table, gaps, "force_per_length_N_per_mm")
+    base = ref["2D default"]
+    rel = {"2D refined": {g: ref["2D refined"][g] / base[g] - 1 for g in gaps}}
+    for label, nl, nc, g8, rg, beta in ELEMENT_CASES:
+        mesh = MeshSpec3D(n_layers=nl, n_circ=nc, n_jaw=1, n_free=0, grading=g8,
+                          radial_grading=rg, beta=beta)  # fmt: skip
+        spec = CaseSpec3D("mr", T, jaw_length_mm=L + 2.0, tube_length_mm=L, plane_strain=True,
+                          contact="frictionless", closed_gap_mm=2.8, mesh=mesh)  # fmt: skip
+        r3 = _run(_with_gaps(spec, gaps), label)
+        rel[label] = {g: v / L / base[g] - 1 for g, v in _force_at(r3.table, gaps).items()}
+    print("force per length / 2D default - 1, in %:")
+    _header(gaps)
+    for label, v in rel.items():
+        _print_row(label, {g: 100 * x for g, x in v.items()}, "{:+9.1f}")
+    return {"2d_N_per_mm": base, "rel": rel}
+
+
 def bench_shell() -> dict:
     """Small-deflection jaw stiffness of a long tube vs semi-membrane shell theory."""
     d = 0.02
@@ -415,6 +458,7 @@ SECTIONS = {
     "mesh": bench_mesh,
     "meshband": bench_meshband,
     "planestrain": bench_planestrain,
+    "element": bench_element,
 }
 
 

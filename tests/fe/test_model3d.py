@@ -445,9 +445,16 @@ def test_3d_crease_is_placed_where_the_work_balances_the_strain_energy():
     before the band.  With the rule the force drops at a larger gap and the balance stays at
     that error within 0.3 % (measured -0.08 %): the crease is where the two states' energies
     are equal.  Both end in the same state.
+
+    The snap here is the pure mixed element's (``beta = 0``) spurious fold mode (``bench_fe3d.py
+    element``: in plane strain it loses a third of the force): a snap this coarse mesh shows,
+    which is all the placement needs.  With ``beta`` 0.02 a 2 x 24 mesh graded 8:1 does not
+    snap before gap 4.2 mm on this tube (work and energy then agree within 0.6 %).  The
+    path through a spurious snap is sensitive to round-off: with the uniform layers computed
+    another way (equal to 1e-15 mm) it snapped at 5.20 mm and the rule placed it at 5.06 mm.
     """
     t = 1.4
-    mesh = MeshSpec3D(n_layers=2, n_circ=12, n_jaw=3, n_free=2)
+    mesh = MeshSpec3D(n_layers=2, n_circ=12, n_jaw=3, n_free=2, beta=0.0)
     mat = get_material("mr")
     out = {}
     for maxwell in (False, True):
@@ -473,3 +480,50 @@ def test_3d_crease_is_placed_where_the_work_balances_the_strain_energy():
     assert jump0 > 0.005  # the snap's released energy (measured 1.39 %), still in the work
     assert abs(jump1) < 0.003
     assert e1 == pytest.approx(e0, rel=1e-3)
+
+
+def _plane_strain_band(mesh: MeshSpec3D, closed_gap: float, gaps) -> dict:
+    """3D in plane strain (u_z = 0, jaw as long as the tube), frictionless: force per length
+    (N/mm) at the gaps."""
+    L = 2.0
+    spec = CaseSpec3D("mr", 1.4, jaw_length_mm=L + 2.0, tube_length_mm=L, plane_strain=True,
+                      contact="frictionless", closed_gap_mm=closed_gap, mesh=mesh)  # fmt: skip
+    r = run_case_3d(replace(spec, solver=replace(spec.solver, land_on_gaps_mm=gaps)))
+    assert r.status == "complete"
+    return {g: _at(r.table, g) / L for g in gaps}
+
+
+def _band_2d(closed_gap: float, gaps) -> dict:
+    """The 2D model's default mesh (within 1.3 % of its 2x refinement over this band,
+    ``bench_fe3d.py element``), frictionless: force per length (N/mm) at the gaps."""
+    t = 1.4
+    mesh = MeshSpec().for_wall(15.0 - t, t)
+    s2 = CaseSpec("mr", t, closed_gap_mm=closed_gap, mesh=mesh,
+                  solver=SolverSettings(land_on_gaps_mm=gaps))  # fmt: skip
+    r = run_case(s2)
+    return {g: _at(r.table, g, "force_per_length_N_per_mm") for g in gaps}
+
+
+#: the cross-section of the plane-strain band checks: graded 8:1 toward the fold like the 2D mesh
+BAND_MESH = MeshSpec3D(n_layers=4, n_circ=24, n_jaw=1, n_free=0, grading=8.0)
+
+
+@pytest.mark.slow
+def test_plane_strain_3d_follows_the_2d_model_through_the_crease_band():
+    """The 3D element (Q2/P1 with a 5 % pointwise share of the volumetric energy, the default
+    ``MeshSpec3D.beta``) in plane strain on a cross-section graded toward the fold, against the
+    2D model (P2B/P1 triangles, a second formulation) through the crease band 2t..4t of
+    t = 1.4 mm: within 3 % at every gap but the crease onset (4.5 mm: the 3D crease forms
+    0.3 mm later, measured +3.4 %), where a shift of the onset counts, not a level.  Measured
+    (``bench_fe3d.py element``): 0.0-0.7 % (beta 0.02: 0.0-1.5 %; the 4 x 48 refinement with
+    0.02: 0.0-0.6 %).  With ``beta`` = 0 the same mesh loses a third of the force at 5.5 mm
+    (-31 %; 0.01: -21 % at 5 mm): the pure mixed element, stable in the linear limit, buckles
+    spuriously in the fold's compression
+    (Auricchio et al. 2005 show such instabilities of mixed elements at finite strain).
+    """
+    gaps = (10.0, 6.0, 5.5, 5.0, 4.0, 3.5, 3.2, 3.0, 2.9)
+    f2 = _band_2d(2.85, gaps)
+    f3 = _plane_strain_band(BAND_MESH, 2.85, gaps)
+    assert BAND_MESH.beta == 0.05
+    for g in gaps:
+        assert f3[g] == pytest.approx(f2[g], rel=0.01 if g >= 6.0 else 0.03), g

