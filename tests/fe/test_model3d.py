@@ -504,8 +504,9 @@ def _band_2d(closed_gap: float, gaps) -> dict:
     return {g: _at(r.table, g, "force_per_length_N_per_mm") for g in gaps}
 
 
-#: the cross-section of the plane-strain band checks: graded 8:1 toward the fold like the 2D mesh
-BAND_MESH = MeshSpec3D(n_layers=4, n_circ=24, n_jaw=1, n_free=0, grading=8.0)
+#: the cross-section of the plane-strain band check: graded 8:1 toward the fold and 3:1 toward
+#: the inner wall, like the 2D mesh (3,087 DOFs; 4 uniform layers agree better, 0.7 %, at 3x cost)
+BAND_MESH = MeshSpec3D(n_layers=3, n_circ=24, n_jaw=1, n_free=0, grading=8.0, radial_grading=3.0)
 
 
 @pytest.mark.slow
@@ -514,16 +515,20 @@ def test_plane_strain_3d_follows_the_2d_model_through_the_crease_band():
     ``MeshSpec3D.beta``) in plane strain on a cross-section graded toward the fold, against the
     2D model (P2B/P1 triangles, a second formulation) through the crease band 2t..4t of
     t = 1.4 mm: within 3 % at every gap but the crease onset (4.5 mm: the 3D crease forms
-    0.3 mm later, measured +3.4 %), where a shift of the onset counts, not a level.  Measured
-    (``bench_fe3d.py element``): 0.0-0.7 % (beta 0.02: 0.0-1.5 %; the 4 x 48 refinement with
-    0.02: 0.0-0.6 %).  With ``beta`` = 0 the same mesh loses a third of the force at 5.5 mm
-    (-31 %; 0.01: -21 % at 5 mm): the pure mixed element, stable in the linear limit, buckles
-    spuriously in the fold's compression
-    (Auricchio et al. 2005 show such instabilities of mixed elements at finite strain).
+    later, measured +3.1 %), where a shift of the onset counts, not a level, and the walls'
+    knee (2.85 mm, +9.5 %: about 0.04 mm of gap; 4 x 48 divisions: 0.4 %).  Measured
+    (``bench_fe3d.py element``): 0.0-2.1 % (4 x 24 uniform layers: 0.0-0.7 %).  With ``beta``
+    = 0 a 4 x 24 mesh loses a third of the force at 5.5 mm (-31 %; 0.01: -21 % at 5 mm): the
+    pure mixed element, stable in the linear limit, buckles spuriously in the fold's
+    compression (Auricchio et al. 2005 show such instabilities of mixed elements at finite
+    strain).
     """
-    gaps = (10.0, 6.0, 5.5, 5.0, 4.0, 3.5, 3.2, 3.0, 2.9)
-    f2 = _band_2d(2.85, gaps)
-    f3 = _plane_strain_band(BAND_MESH, 2.85, gaps)
+    # the steps land on every gap of the benchmark (4.5 and 2.85 mm too, not compared): where
+    # the crease forms depends on the steps (without a step at 4.5 mm, 4.0 mm reads +3.4 %)
+    gaps = (10.0, 6.0, 5.5, 5.0, 4.5, 4.0, 3.5, 3.2, 3.0, 2.9, 2.85)
+    f2 = _band_2d(2.8, gaps)
+    f3 = _plane_strain_band(BAND_MESH, 2.8, gaps)
     assert BAND_MESH.beta == 0.05
     for g in gaps:
-        assert f3[g] == pytest.approx(f2[g], rel=0.01 if g >= 6.0 else 0.03), g
+        if g not in (4.5, 2.85):
+            assert f3[g] == pytest.approx(f2[g], rel=0.01 if g >= 6.0 else 0.03), g
