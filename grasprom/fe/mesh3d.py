@@ -67,6 +67,14 @@ class MeshSpec3D:
     beta: float = 0.05
     radial_grading: float = 1.0
 
+    def __post_init__(self) -> None:
+        for name in ("grading", "radial_grading"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"invalid {name}={v!r}: a ratio of element sizes, > 0")
+        if not (np.isfinite(self.beta) and 0.0 <= self.beta <= 1.0):
+            raise ValueError(f"invalid beta={self.beta!r}: a share in [0, 1]")
+
 
 def axial_nodes(half_length: float, z_fine: float, n_jaw: int, n_free: int) -> np.ndarray:
     """Axial node positions (mm) on ``[0, half_length]``: uniform up to ``z_fine``, then graded."""

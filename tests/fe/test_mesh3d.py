@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from grasprom.fe.mesh3d import MeshSpec3D, axial_nodes, discretise3d
+from grasprom.fe.mesh3d import MeshSpec3D, axial_nodes, discretise3d, tube_mesh
 from grasprom.fe.model2d import graded_fractions
 
 
@@ -31,3 +31,22 @@ def test_outer_and_inner_walls_cover_the_quarter_and_their_area(n_circ, n_layers
     dth = 0.5 * np.pi * np.diff(graded_fractions(n_circ, mesh.grading))
     chord = (2 * R * np.sin(0.5 * dth)).sum()
     assert d.outer_area.sum() == pytest.approx(chord * L, rel=1e-10)
+
+
+@pytest.mark.parametrize(
+    "kw",
+    [{"grading": 0.0}, {"grading": float("nan")}, {"radial_grading": -2.0},
+     {"beta": -0.1}, {"beta": 1.5}, {"beta": float("inf")}],
+)  # fmt: skip
+def test_mesh_spec_rejects_bad_ratios_and_shares(kw):
+    with pytest.raises(ValueError, match=next(iter(kw))):
+        MeshSpec3D(**kw)
+
+
+def test_radial_grading_thins_the_inner_layers():
+    """Layer edges in geometric progression, the outermost 3x the innermost (mm)."""
+    m = tube_mesh(15.0, 1.4, np.array([0.0, 1.0]), MeshSpec3D(n_layers=3, radial_grading=3.0))
+    r = np.unique(np.round(np.hypot(m.p[0], m.p[1]), 9))
+    h = np.diff(r)
+    assert r[0] == pytest.approx(13.6) and r[-1] == pytest.approx(15.0)
+    assert h[-1] / h[0] == pytest.approx(3.0) and h[1] / h[0] == pytest.approx(np.sqrt(3.0))
