@@ -343,27 +343,33 @@ def bench_meshband(tube_length: float = 60.0) -> dict:
     return {k: {kk: vv for kk, vv in v.items() if kk != "info"} for k, v in out.items()}
 
 
+#: tube length (mm) of the plane-strain slices; their jaw is 2 mm longer (flat over the tube)
+PLANE_STRAIN_L = 2.0
+
+
+def _plane_strain_3d(mesh: MeshSpec3D, gaps, label: str) -> dict:
+    """3D in plane strain (u_z = 0, frictionless) to gap 2.8 mm: force per length (N/mm)."""
+    L = PLANE_STRAIN_L
+    spec = CaseSpec3D("mr", T, jaw_length_mm=L + 2.0, tube_length_mm=L, plane_strain=True,
+                      contact="frictionless", closed_gap_mm=2.8, mesh=mesh)  # fmt: skip
+    r3 = _run(_with_gaps(spec, gaps), label)
+    return {g: v / L for g, v in _force_at(r3.table, gaps).items()}
+
+
+def _plane_strain_2d(mesh: MeshSpec, gaps) -> dict:
+    """The 2D model (frictionless) to gap 2.8 mm: force per length (N/mm)."""
+    s2 = CaseSpec("mr", T, closed_gap_mm=2.8, mesh=mesh)
+    r2 = run_case(replace(s2, solver=SolverSettings(land_on_gaps_mm=gaps)))
+    return _force_at(r2.table, gaps, "force_per_length_N_per_mm")
+
+
 def bench_planestrain(nc: int = 32) -> dict:
     """Plane-strain 3D (u_z = 0, jaw as long as the tube) vs the 2D model, full stroke."""
     gaps = (20.0, 10.0, 6.0, 4.0, 3.2, 2.9)
-    L = 2.0
-    spec = CaseSpec3D(
-        "mr",
-        T,
-        jaw_length_mm=L + 2.0,
-        tube_length_mm=L,
-        plane_strain=True,
-        contact="frictionless",
-        closed_gap_mm=2.8,
-        mesh=MeshSpec3D(n_layers=2, n_circ=nc, n_jaw=1, n_free=0, grading=1.0),
-    )
-    r3 = _run(_with_gaps(spec, gaps), f"plane-strain 3D (2 x {nc})")
-    res2 = {}
-    for nl, n in ((2, nc), (4, 2 * nc)):
-        s2 = CaseSpec("mr", T, closed_gap_mm=2.8, mesh=MeshSpec(n_layers=nl, n_circ=n))
-        r2 = run_case(replace(s2, solver=SolverSettings(land_on_gaps_mm=gaps)))
-        res2[(nl, n)] = _force_at(r2.table, gaps, "force_per_length_N_per_mm")
-    f3 = {g: v / L for g, v in _force_at(r3.table, gaps).items()}
+    mesh = MeshSpec3D(n_layers=2, n_circ=nc, n_jaw=1, n_free=0, grading=1.0)
+    f3 = _plane_strain_3d(mesh, gaps, f"plane-strain 3D (2 x {nc})")
+    res2 = {(nl, n): _plane_strain_2d(MeshSpec(n_layers=nl, n_circ=n), gaps)
+            for nl, n in ((2, nc), (4, 2 * nc))}  # fmt: skip
     _header(gaps)
     _print_row("3D N/mm", f3)
     for k, v in res2.items():
@@ -391,23 +397,19 @@ ELEMENT_CASES = (
 
 def bench_element() -> dict:
     """Crease band in plane strain (frictionless, mr t = 1.4): 3D Q2/P1 vs the 2D model."""
-    gaps, L = BAND_GAPS, 2.0
+    gaps = BAND_GAPS
     ref = {}
     for label, mesh in (("2D default", MeshSpec()), ("2D refined", MeshSpec().refined(2))):
-        s2 = CaseSpec("mr", T, closed_gap_mm=2.8, mesh=mesh.for_wall(15.0 - T, T))
         t0 = time.perf_counter()
-        r2 = run_case(replace(s2, solver=SolverSettings(land_on_gaps_mm=gaps)))
-        print(f"[{label}] {r2.status}, {time.perf_counter() - t0:.0f} s", flush=True)
-        ref[label] = _force_at(r2.table, gaps, "force_per_length_N_per_mm")
+        ref[label] = _plane_strain_2d(mesh.for_wall(15.0 - T, T), gaps)
+        print(f"[{label}] {time.perf_counter() - t0:.0f} s", flush=True)
     base = ref["2D default"]
     rel = {"2D refined": {g: ref["2D refined"][g] / base[g] - 1 for g in gaps}}
     for label, nl, nc, g8, rg, beta in ELEMENT_CASES:
         mesh = MeshSpec3D(n_layers=nl, n_circ=nc, n_jaw=1, n_free=0, grading=g8,
                           radial_grading=rg, beta=beta)  # fmt: skip
-        spec = CaseSpec3D("mr", T, jaw_length_mm=L + 2.0, tube_length_mm=L, plane_strain=True,
-                          contact="frictionless", closed_gap_mm=2.8, mesh=mesh)  # fmt: skip
-        r3 = _run(_with_gaps(spec, gaps), label)
-        rel[label] = {g: v / L / base[g] - 1 for g, v in _force_at(r3.table, gaps).items()}
+        f3 = _plane_strain_3d(mesh, gaps, label)
+        rel[label] = {g: f3[g] / base[g] - 1 for g in gaps}
     print("force per length / 2D default - 1, in %:")
     _header(gaps)
     for label, v in rel.items():
