@@ -15,6 +15,7 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py planestrain   # plane-strain 3D vs the 2D model, full stroke
     python benchmarks/bench_fe3d.py element       # crease band in plane strain: beta, cross-section
     python benchmarks/bench_fe3d.py shell         # small-deflection stiffness vs shell theory
+    python benchmarks/bench_fe3d.py assembly      # tangent assembly vs a plain einsum, default case
 
 Forces in N, gaps in mm.  t = 1.4 mm, Mooney-Rivlin, unless stated.  Timings are wall-clock on
 whatever machine runs this (noisy when shared).
@@ -38,6 +39,8 @@ T = 1.4
 #: 200 N force cap is reached near gap 2.4 mm
 GAPS = (20.0, 10.0, 5.0, 2.9, 2.7, 2.6)
 FINE = MeshSpec3D(n_layers=3, n_circ=16, n_jaw=6, n_free=8, grading=2.0)
+#: the fold-resolving cross-section of the full-tube studies (docs/fe-model.md)
+FOLD_MESH = MeshSpec3D(n_circ=24, grading=8.0)
 
 
 def _with_gaps(spec: CaseSpec3D, gaps=GAPS) -> CaseSpec3D:
@@ -449,6 +452,63 @@ def bench_shell() -> dict:
     return out
 
 
+def _time(fn, repeat: int = 5) -> float:
+    """Best wall time (s) of ``repeat`` calls after one warm-up."""
+    fn()
+    best = np.inf
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def _assembly_times(label: str, mesh: MeshSpec3D) -> dict:
+    """Wall times (s) of one assembly on ``mesh`` and of the plain einsum baseline."""
+    from grasprom.fe.hyperelastic3d import stress_and_tangent
+    from grasprom.fe.model3d import assemble, build_disc, kinematics
+
+    spec = replace(_base(), mesh=mesh)
+    disc, mat = build_disc(spec), spec.make_material()
+    u = 1e-3 * np.random.default_rng(0).standard_normal(disc.ndof)
+    F = kinematics(disc, u)
+    p = np.zeros(F.shape[:2])
+    _, A, _, _ = stress_and_tangent(mat, F, p)
+    G, dx = disc.grads, disc.dx
+    t_full = _time(lambda: assemble(disc, mat, u))
+    t_f = _time(lambda: assemble(disc, mat, u, tangent=False))
+    t_pt = _time(lambda: stress_and_tangent(mat, F, p))
+    # the baseline: the element matrices alone, by one optimised einsum of their definition
+    path = "eqaj,eqijkl,eqbl,eq->eaibk"
+    t_plain = _time(lambda: np.einsum(path, G, A, G, dx, optimize="greedy"), 2)
+    print(
+        f"  {label}: {disc.ndof} dofs, {G.shape[0]} elements; assemble f+K {t_full:.3f} s "
+        f"(f only {t_f:.3f} s, pointwise A {t_pt:.3f} s); the element matrices alone by "
+        f"plain einsum {t_plain:.3f} s = {t_plain / t_full:.1f} x the whole assembly",
+        flush=True,
+    )
+    return {
+        "dofs": disc.ndof,
+        "assemble_s": t_full,
+        "force_only_s": t_f,
+        "pointwise_tangent_s": t_pt,
+        "plain_einsum_element_matrices_s": t_plain,
+    }
+
+
+def bench_assembly() -> dict:
+    """Tangent assembly: the batched kernels against a plain einsum baseline; default case."""
+    out = {
+        label: _assembly_times(label, mesh)
+        for label, mesh in (("default 2 x 12", MeshSpec3D()), ("2 x 24 g8", FOLD_MESH))
+    }
+    t0 = time.perf_counter()
+    res = _run(_base(), "default case")
+    out["default_case_s"] = time.perf_counter() - t0
+    out["newton_iterations"] = res.info["newton_iterations"]
+    return out
+
+
 SECTIONS = {
     "shell": bench_shell,
     "default": bench_default,
@@ -462,6 +522,7 @@ SECTIONS = {
     "meshband": bench_meshband,
     "planestrain": bench_planestrain,
     "element": bench_element,
+    "assembly": bench_assembly,
 }
 
 

@@ -24,8 +24,6 @@ import numpy as np
 from grasprom.fe.materials import CompressibleNeoHookean, Material, MooneyRivlin
 
 _I3 = np.eye(3)
-#: delta_ik delta_jl
-_I4 = np.einsum("ik,jl->ijkl", _I3, _I3)
 
 
 def cofactor3(F: np.ndarray) -> np.ndarray:
@@ -117,26 +115,32 @@ def stress_and_tangent(
         return P, None, J, H
     if k_pt is not None:
         second = (*second[:5], second[5] + k_pt)
-    W_11, W_12, W_1J, W_22, W_2J, W_JJ = (s[..., None, None, None, None] for s in second)
-    e = "...ij,...kl->...ijkl"
-    B = np.einsum("...ik,...jk->...ij", F, F)
-    A = 2.0 * W_1[..., None, None, None, None] * _I4
-    dG2 = 2.0 * (
-        2.0 * np.einsum(e, F, F)
-        + I1[..., None, None, None, None] * _I4
-        - np.einsum("ik,...jl->...ijkl", _I3, C)
-        - np.einsum("...il,...kj->...ijkl", F, F)
-        - np.einsum("...ik,jl->...ijkl", B, _I3)
-    )
-    A = A + W_2[..., None, None, None, None] * dG2
-    dH = (np.einsum(e, H, H) - np.einsum("...il,...kj->...ijkl", H, H)) / J[
-        ..., None, None, None, None
-    ]
-    A = A + WJt[..., None, None, None, None] * dH
-    A = A + W_11 * np.einsum(e, G1, G1) + W_22 * np.einsum(e, G2, G2) + W_JJ * np.einsum(e, H, H)
-    A = A + W_12 * (np.einsum(e, G1, G2) + np.einsum(e, G2, G1))
-    A = A + W_1J * (np.einsum(e, G1, H) + np.einsum(e, H, G1))
-    A = A + W_2J * (np.einsum(e, G2, H) + np.einsum(e, H, G2))
+    W_11, W_12, W_1J, W_22, W_2J, W_JJ = second
+    # A as a 9 x 9 matrix A[(i j), (k l)]: the isotropic part, the Kronecker and "swap"
+    # parts of d G2 / dF and d H / dF, and the rank-one parts sum_mn c_mn M_m (x) M_n over
+    # M = (G1, G2, H) (d G1 / dF = 2 I4 is in the isotropic part; 4 W_2 F (x) F = W_2 G1 (x) G1)
+    B = np.matmul(F, F.swapaxes(-1, -2))
+    shape = F.shape[:-2]
+    A = np.zeros((*shape, 9, 9))
+    A[..., np.arange(9), np.arange(9)] = (2.0 * W_1 + 2.0 * W_2 * I1)[..., None]
+    w2 = (-2.0 * W_2)[..., None, None]
+    wh = (-WJt / J)[..., None, None]
+    A4 = A.reshape(*shape, 3, 3, 3, 3)
+    Ft, Ht = F.swapaxes(-1, -2), H.swapaxes(-1, -2)
+    A4 += _I3[:, None, :, None] * (w2 * C)[..., None, :, None, :]  # delta_ik C_jl
+    A4 += (w2 * B)[..., :, None, :, None] * _I3[None, :, None, :]  # B_ik delta_jl
+    A4 += (w2 * F)[..., :, None, None, :] * Ft[..., None, :, :, None]  # F_il F_kj
+    A4 += (wh * H)[..., :, None, None, :] * Ht[..., None, :, :, None]  # H_il H_kj
+    M = np.stack([G1, G2, H], axis=-3).reshape(*shape, 3, 9)
+    c = np.empty((*shape, 3, 3))
+    c[..., 0, 0] = W_11 + W_2
+    c[..., 1, 1] = W_22
+    c[..., 2, 2] = W_JJ + WJt / J
+    c[..., 0, 1] = c[..., 1, 0] = W_12
+    c[..., 0, 2] = c[..., 2, 0] = W_1J
+    c[..., 1, 2] = c[..., 2, 1] = W_2J
+    A += np.matmul(M.swapaxes(-1, -2), np.matmul(c, M))
+    A = A4
     return P, A, J, H
 
 

@@ -138,6 +138,8 @@ class Disc3D:
     indptr: np.ndarray
     indices: np.ndarray
     diag_pos: np.ndarray
+    grads_t: np.ndarray  # (ne, 27, nq * 3) dN_b/dX_l at [e, b, (q l)] (the tangent's layout)
+    scatter_t: np.ndarray  # CSR position of each element-matrix entry in the order [e, b, i, k, a]
     beta: float = 0.0  # pointwise share of the volumetric energy
 
 
@@ -219,6 +221,10 @@ def discretise3d(outer_radius: float, thickness: float, z_nodes: np.ndarray, mes
     inner_nodes = inner_nodes[~on_y0[inner_nodes]]
     area = _outer_area(m, elem, outer_f)[outer_nodes]
     rows, cols, scatter, indptr, diag_pos = _csr_maps(edofs, ndof)
+    ne, nq = dx.shape
+    # [e, (a i), (b k)] -> [e, b, i, k, a]: the order model3d's element tangent comes out in
+    scatter_t = scatter.reshape(ne, nloc, 3, nloc, 3).transpose(0, 3, 2, 4, 1).ravel()
+    grads_t = np.ascontiguousarray(grads.transpose(0, 2, 1, 3)).reshape(ne, nloc, nq * 3)
     return Disc3D(
         ndof=ndof,
         edofs=edofs,
@@ -241,5 +247,7 @@ def discretise3d(outer_radius: float, thickness: float, z_nodes: np.ndarray, mes
         indptr=indptr,
         indices=cols.astype(np.int32),
         diag_pos=diag_pos,
+        grads_t=grads_t,
+        scatter_t=scatter_t,
         beta=float(mesh.beta),
     )
