@@ -37,7 +37,7 @@ import pandas as pd
 import scipy.sparse as sp
 
 from grasprom.fe.crease import CreaseOnset, crease_onset, hermite_energy, splice_crease
-from grasprom.fe.linsolve import solve_symmetric
+from grasprom.fe.linsolve import make_solver, solve_symmetric, solver_name
 from grasprom.fe.materials import Material, cofactor, get_material, pointwise_tangent
 
 #: columns every case CSV must hold (a contract other tools rely on)
@@ -681,8 +681,32 @@ def _prox_terms(disc, fixed: np.ndarray, prox):
     return e, (lambda u: c * (u - u_ref) * free), sp.diags(c * free, format="csr")
 
 
+def _descent(disc, Kc: sp.csr_matrix, r: np.ndarray, solve) -> np.ndarray:
+    """Newton direction ``-Kc^-1 r`` with a Levenberg shift if it is not a descent direction
+    (``solve(K, rhs)``: the linear solver)."""
+    shift = 0.0
+    for _ in range(6):
+        Ks = Kc if shift == 0.0 else Kc + shift * sp.identity(disc.ndof, format="csr")
+        try:
+            du = solve(Ks, -r)
+        except RuntimeError:
+            du = None
+        if du is not None and np.all(np.isfinite(du)) and r @ du < 0:
+            return du
+        shift = 1e-3 * abs(Kc.diagonal()).mean() if shift == 0.0 else shift * 10.0
+    raise _NewtonFailure("no descent direction")
+
+
 def _newton(
-    disc, material, u, fixed, settings: SolverSettings, fscale: float, prox=None, extra=None
+    disc,
+    material,
+    u,
+    fixed,
+    settings: SolverSettings,
+    fscale: float,
+    prox=None,
+    extra=None,
+    solve=solve_symmetric,
 ):
     """Newton-Raphson with energy line search on the free dofs; returns (u, f, K, iters).
 
@@ -691,7 +715,8 @@ def _newton(
     regularised ones.  ``extra = (energy, force, tangent)`` (functions of ``u``, or None) adds
     a potential of the contact (the Coulomb friction of :class:`_Friction`); ``f`` returned
     is without its force (the internal force: at a node in contact its ``x`` part is the
-    jaw's tangential reaction, as at a fixed dof).
+    jaw's tangential reaction, as at a fixed dof).  ``solve(K, rhs)``: the linear solver
+    (:func:`grasprom.fe.linsolve.make_solver`).
     """
     e_prox, f_prox, k_prox = _prox_terms(disc, fixed, prox)
     e_x, f_x, k_x = extra if extra is not None else (None, None, None)
@@ -720,19 +745,7 @@ def _newton(
         rnorm = np.linalg.norm(r)
         if rnorm <= tol:
             return u, (f - f_x(u) if extra is not None else f), K, it - 1
-        Kc = _constrained_system(disc, K, fixed)
-        shift = 0.0
-        for _ in range(6):
-            Ks = Kc if shift == 0.0 else Kc + shift * sp.identity(disc.ndof, format="csr")
-            try:
-                du = solve_symmetric(Ks, -r)
-            except RuntimeError:
-                du = None
-            if du is not None and np.all(np.isfinite(du)) and r @ du < 0:
-                break
-            shift = 1e-3 * abs(Kc.diagonal()).mean() if shift == 0.0 else shift * 10.0
-        else:
-            raise _NewtonFailure("no descent direction")
+        du = _descent(disc, _constrained_system(disc, K, fixed), r, solve)
         du[fixed] = 0.0
         e0 = energy_p(u)
         slope = r @ du
@@ -878,7 +891,14 @@ def _fixed_and_values(disc, state: _State, h: float):
 
 
 def _solve_step(
-    disc, material, state: _State, h: float, settings: SolverSettings, fscale, prox=None
+    disc,
+    material,
+    state: _State,
+    h: float,
+    settings: SolverSettings,
+    fscale,
+    prox=None,
+    solve=solve_symmetric,
 ):
     """Solve equilibrium at jaw height ``h`` (mm) with the active-set loop.
 
@@ -906,7 +926,7 @@ def _solve_step(
                 rhs[fixed] = 0.0
                 Kc = _constrained_system(disc, K_old, fixed)
                 try:
-                    dfree = solve_symmetric(Kc, rhs)
+                    dfree = solve(Kc, rhs)
                 except RuntimeError:  # singular tangent: no predictor
                     dfree = np.full_like(rhs, np.nan)
                 dfree[fixed] = 0.0
@@ -914,7 +934,7 @@ def _solve_step(
                     u = u + dfree
             u = u + jump
         extra = fric.terms(disc, jaw_active) if fric is not None else None
-        u, f, K, it = _newton(disc, material, u, fixed, settings, fscale, prox, extra)
+        u, f, K, it = _newton(disc, material, u, fixed, settings, fscale, prox, extra, solve)
         lag, iters = (lag + it, iters) if lagged else (lag, iters + it)
         K_old = K
         y = disc.X[:, 1] + u[1::2]
@@ -945,19 +965,28 @@ _STEP_ERRORS = (_NewtonFailure, RuntimeError, ValueError, FloatingPointError)
 """What a failed load step raises (cut the step and retry)."""
 
 
-def _advance(disc, material, state: _State, h: float, settings: SolverSettings, fscale, dh):
+def _advance(disc, material, state: _State, h: float, settings: SolverSettings, fscale, dh, solve):
     """The step to jaw height ``h`` (mm): Newton with the active set, and if a jaw step ``dh``
     (mm) of at most ``settings.relax_below_mm`` fails, the snap by :func:`_relax`."""
     try:
-        return _solve_step(disc, material, state, h, settings, fscale)
+        return _solve_step(disc, material, state, h, settings, fscale, solve=solve)
     except _STEP_ERRORS:
         if dh > settings.relax_below_mm:
             raise
-    return _relax(disc, material, state, h, settings, fscale)
+    return _relax(disc, material, state, h, settings, fscale, solve)
 
 
 def _crease_onset(
-    disc, material, snapped: _State, h_snap: float, branch, t: float, settings, fscale, landing
+    disc,
+    material,
+    snapped: _State,
+    h_snap: float,
+    branch,
+    t: float,
+    settings,
+    fscale,
+    landing,
+    solve=solve_symmetric,
 ):
     """Continue a snapped (creased) state back to larger jaw heights while its strain energy
     stays below the smooth branch's (``branch``, :func:`grasprom.fe.crease.hermite_energy`), up
@@ -970,11 +999,11 @@ def _crease_onset(
         e_s = hermite_energy(branch, hh)
         return energy(disc, material, state.u) < e_s - 1e-10 * abs(e_s)
 
-    def solve(state: _State, hh: float):
-        return _solve_step(disc, material, state, hh, settings, fscale)
+    def step(state: _State, hh: float):
+        return _solve_step(disc, material, state, hh, settings, fscale, solve=solve)
 
     dh = 0.25 * settings.crease_step_fraction * t
-    return crease_onset(solve, below, snapped, h_snap, dh, 2.0 * t, landing, _STEP_ERRORS, 10)
+    return crease_onset(step, below, snapped, h_snap, dh, 2.0 * t, landing, _STEP_ERRORS, 10)
 
 
 def _splice_crease(disc, material, rows: list, branch: list, back: CreaseOnset, R: float, scale_N):
@@ -988,7 +1017,9 @@ def _splice_crease(disc, material, rows: list, branch: list, back: CreaseOnset, 
     return splice_crease(rows, branch, back, entry)
 
 
-def _relax(disc, material, state: _State, h: float, settings: SolverSettings, fscale):
+def _relax(
+    disc, material, state: _State, h: float, settings: SolverSettings, fscale, solve=solve_symmetric
+):
     """Equilibrium at jaw height ``h`` (mm) past a snap, by proximal-point iteration.
 
     Where the wall snaps (the flattened wall buckles inward in the crease band), no equilibrium
@@ -1004,12 +1035,14 @@ def _relax(disc, material, state: _State, h: float, settings: SolverSettings, fs
     current = state
     for _ in range(settings.max_relax):
         try:
-            current, _ = _solve_step(disc, material, current, h, settings, fscale, (c, current.u))
+            current, _ = _solve_step(
+                disc, material, current, h, settings, fscale, (c, current.u), solve
+            )
         except _STEP_ERRORS:
             c *= 4.0
             continue
         try:
-            return _solve_step(disc, material, current, h, settings, fscale)
+            return _solve_step(disc, material, current, h, settings, fscale, solve=solve)
         except _STEP_ERRORS:
             c *= 0.7
     raise _NewtonFailure(f"no equilibrium within {settings.max_relax} proximal steps")
@@ -1042,7 +1075,7 @@ def _contact_measures(disc, state: _State):
     return force_q, width_q, peak, inner_w, share
 
 
-def run_case(spec: CaseSpec, progress=None) -> CaseResult:
+def run_case(spec: CaseSpec, progress=None, solver: str = "auto") -> CaseResult:
     """Run one clamping case: drive the jaw from first touch to the closed gap or force cap.
 
     Parameters
@@ -1051,6 +1084,10 @@ def run_case(spec: CaseSpec, progress=None) -> CaseResult:
         Geometry (mm), material, limits, mesh and solver settings.
     progress : callable, optional
         Called as ``progress(gap_mm, force_N)`` after each converged step.
+    solver : str
+        Sparse solver (:func:`grasprom.fe.linsolve.make_solver`): ``"auto"`` (MKL PARDISO if
+        ``pypardiso`` is installed, else scipy SuperLU), ``"superlu"`` or ``"pardiso"``.  The
+        choice changes the forces only by round-off (tested); ``info["linear_solver"]``.
 
     Returns
     -------
@@ -1063,6 +1100,7 @@ def run_case(spec: CaseSpec, progress=None) -> CaseResult:
     R = 0.5 * spec.diameter_mm
     t = spec.thickness_mm
     disc = discretise(R, t, spec.mesh)
+    solve = make_solver(solver)
     s = spec.solver
     fscale = material.mu * t
     scale_N = 2.0 * spec.jaw_length_mm  # quarter N/mm -> one jaw N
@@ -1071,15 +1109,12 @@ def run_case(spec: CaseSpec, progress=None) -> CaseResult:
     if spec.contact == "coulomb":
         state.mu = float(spec.friction)
     rows = [dict(zip(COLUMNS_2D, (2 * R, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0, 0.0)))]
-    h = R
-    dh = s.dh_initial_mm
+    h, dh = R, s.dh_initial_mm
     landing = sorted((0.5 * g for g in s.land_on_gaps_mm), reverse=True)
-    total_newton = 0
+    total_newton, force_prev = 0, 0.0
     fail_log: list[dict] = []
-    force_prev = 0.0
     branch = [(h, 0.0, 0.0)]  # (jaw height mm, strain energy, quarter force N/mm) per row
-    status = "partial"
-    reason = ""
+    status, reason = "partial", ""
     while True:
         dh = _limit_step(dh, h, t, h_end, s, landing)
         if dh < s.dh_min_mm and h - h_end > s.dh_min_mm:
@@ -1087,7 +1122,7 @@ def run_case(spec: CaseSpec, progress=None) -> CaseResult:
             break
         h_new = h - dh
         try:
-            new_state, iters = _advance(disc, material, state, h_new, s, fscale, dh)
+            new_state, iters = _advance(disc, material, state, h_new, s, fscale, dh, solve)
         except _STEP_ERRORS as exc:
             fail_log.append({"gap_mm": 2 * h_new, "dh_mm": dh, "reason": str(exc)})
             dh *= 0.25
@@ -1096,7 +1131,9 @@ def run_case(spec: CaseSpec, progress=None) -> CaseResult:
         row = _step_row(disc, new_state, h_new, R, scale_N, iters)
         e_new = energy(disc, material, new_state.u)
         if s.maxwell_crease and t < h_new < 2.0 * t and row["force_N"] < force_prev * (1 - 1e-4):
-            back = _crease_onset(disc, material, new_state, h_new, branch, t, s, fscale, landing)
+            back = _crease_onset(
+                disc, material, new_state, h_new, branch, t, s, fscale, landing, solve
+            )
             rows, branch = _splice_crease(disc, material, rows, branch, back, R, scale_N)
             total_newton += back.newton_iterations
         state = new_state
@@ -1116,6 +1153,7 @@ def run_case(spec: CaseSpec, progress=None) -> CaseResult:
         force_prev = force_N
     table = pd.DataFrame(rows, columns=list(COLUMNS_2D))
     info = _solver_record(spec, disc, material, table, reason, total_newton, fail_log, h, t0)
+    info["linear_solver"] = solver_name(solve)
     return CaseResult(table=table, status=status, info=info)
 
 

@@ -109,3 +109,25 @@ def test_3d_case_is_the_same_with_either_solver():
     assert np.allclose(b.table["force_N"], a.table["force_N"], rtol=1e-8, atol=1e-12)
     assert b.info["linear_solver"].startswith("MKL PARDISO")
     assert a.info["linear_solver"].startswith("scipy SuperLU")
+
+
+def test_2d_case_is_the_same_with_either_solver():
+    """The 2D model (stick, t = 1.4 mm) through bending and the walls meeting to gap 2.6 mm:
+    PARDISO and SuperLU give the same forces to 1e-7 (round-off only), step for step."""
+    from grasprom.fe.model2d import CaseSpec, MeshSpec, SolverSettings, run_case
+
+    _pardiso()
+    spec = CaseSpec(
+        "mr",
+        1.4,
+        closed_gap_mm=2.6,
+        mesh=MeshSpec(n_layers=2, n_circ=24),
+        solver=SolverSettings(land_on_gaps_mm=(10.0, 2.7)),
+    )
+    a = run_case(spec, solver="superlu")
+    b = run_case(spec, solver="pardiso")
+    assert len(a.table) == len(b.table)
+    assert np.allclose(b.table["gap_mm"], a.table["gap_mm"], rtol=0, atol=1e-9)
+    assert np.allclose(b.table["force_N"], a.table["force_N"], rtol=1e-7, atol=1e-12)
+    assert b.info["linear_solver"].startswith("MKL PARDISO")
+    assert a.info["linear_solver"].startswith("scipy SuperLU")
