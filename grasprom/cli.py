@@ -203,17 +203,19 @@ def _add_case_geometry(s: argparse.ArgumentParser, d: dict) -> None:
         type=float,
         default=None,
         metavar="RATIO",
-        help="2D mesh: largest / smallest element along the circumference, refining toward the "
-        f"side fold (1 = uniform; default {d['grading']:g}; lowered for thick walls so the fold "
-        f"corner element is at least {d['corner_aspect']:g} times as long as thick)",
+        help="mesh: largest / smallest element along the circumference, refining toward the "
+        f"side fold (1 = uniform; 2d default {d['grading']:g}, lowered for thick walls so the "
+        f"fold corner element is at least {d['corner_aspect']:g} times as long as thick; 3d "
+        "default of grasprom.fe.mesh3d.MeshSpec3D)",
     )
     s.add_argument(
         "--radial-grading",
         type=float,
         default=None,
         metavar="RATIO",
-        help="2D mesh: outermost / innermost layer thickness, refining toward the inner wall "
-        f"(1 = uniform; default {d['radial_grading']:g})",
+        help="mesh: outermost / innermost layer thickness, refining toward the inner wall "
+        f"(1 = uniform; 2d default {d['radial_grading']:g}; 3d default of "
+        "grasprom.fe.mesh3d.MeshSpec3D)",
     )
 
 
@@ -486,8 +488,7 @@ def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
 
     opts3d = Model3DOptions(args.contact, args.friction, args.tube_length, args.ends)
     try:
-        mesh2d = {"--grading": args.grading, "--radial-grading": args.radial_grading}
-        check_options(args.model, opts3d, mesh2d)
+        check_options(args.model, opts3d)
         specs = build_grid(
             args.thickness,
             args.material,
@@ -501,7 +502,9 @@ def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
             radial_grading=args.radial_grading,
         )
         if args.model == "3d":
-            mesh = {k: v for k, v in (("n_layers", args.n_layers), ("n_circ", args.n_circ)) if v}
+            given = {"n_layers": args.n_layers, "n_circ": args.n_circ, "grading": args.grading}
+            given["radial_grading"] = args.radial_grading
+            mesh = {k: v for k, v in given.items() if v is not None}
             specs = to_3d(specs, opts3d, mesh)
         else:
             specs = to_2d(specs, opts3d)

@@ -89,8 +89,8 @@ ROWS: list[tuple[str, list[str], tuple[str, str | bytes] | None, str]] = [
         "--radial-grading",
     ),
     (
-        "sweep-grading-3d",
-        [*SWEEP, "--thickness", "1.4", "--model", "3d", "--grading", "2"],
+        "sweep-grading-3d-below-1",
+        [*SWEEP, "--thickness", "1.4", "--model", "3d", "--grading", "0.5"],
         None,
         "--grading",
     ),

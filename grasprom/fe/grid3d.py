@@ -63,13 +63,9 @@ class Model3DOptions:
     ends: str | None = None
 
 
-def check_options(
-    model: str, opts: Model3DOptions, mesh2d: Mapping[str, object] | None = None
-) -> None:
-    """Validate ``--model`` and the 3D options; errors name the option and the value.
-
-    ``mesh2d`` maps the 2D-only mesh options (flag -> value or None, e.g. ``--grading``);
-    given ones are refused with ``--model 3d``, as the 3D options are with ``--model 2d``.
+def check_options(model: str, opts: Model3DOptions) -> None:
+    """Validate ``--model`` and the 3D options; errors name the option and the value
+    (the 3D-only ones are refused with ``--model 2d``).
 
     Raises
     ------
@@ -91,9 +87,6 @@ def check_options(
         given = [n for n, v in (("--tube-length", tl), ("--ends", opts.ends)) if v is not None]
         if given:
             raise SweepInputError(f"{', '.join(given)}: only with --model 3d")
-    for flag, v in (mesh2d or {}).items():
-        if model == "3d" and v is not None:
-            raise SweepInputError(f"{flag}: a 2D mesh option (--model 2d)")
 
 
 def _check_friction(opts: Model3DOptions) -> None:
@@ -129,7 +122,7 @@ def to_2d(specs: Sequence[Any], opts: Model3DOptions) -> list[Any]:
     return [dataclasses.replace(s, contact=opts.contact, friction=mu) for s in specs]
 
 
-def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, int]) -> list[Any]:
+def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, float]) -> list[Any]:
     """The 3D cases of a validated 2D grid.
 
     Parameters
@@ -138,7 +131,8 @@ def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, int]) -
         The 2D grid (material, thickness, tube and jaw options).
     opts : Model3DOptions
     mesh : mapping
-        ``n_layers`` / ``n_circ`` given on the command line (the others take the 3D defaults).
+        ``n_layers``, ``n_circ``, ``grading``, ``radial_grading`` given on the command line
+        (validated by the 2D grid; the others take the :class:`MeshSpec3D` defaults).
 
     Returns
     -------

@@ -54,6 +54,17 @@ def test_3d_sweep_writes_the_contract_and_the_model_keys(tmp_path, capsys):
     assert meta2["contact"] == "frictionless"
 
 
+def test_3d_sweep_takes_the_graded_mesh_options(tmp_path):
+    """``--grading`` / ``--radial-grading`` reach the 3D mesh (the fold-resolving meshes of
+    docs/fe-model.md run from the command line) and the sidecar records them."""
+    out = tmp_path / "graded"
+    graded = ["--grading", "3", "--radial-grading", "2", "--n-layers", "2"]
+    assert _sweep(out, "--model", "3d", *COARSE, *graded) == 0
+    mesh = json.loads((out / "mr_t1.40.json").read_text())["mesh"]
+    assert mesh["grading"] == 3.0 and mesh["radial_grading"] == 2.0
+    assert mesh["n_layers"] == 2 and mesh["n_circ"] == 8
+
+
 def test_2d_sweep_with_stick_contact_records_it(tmp_path):
     out = tmp_path / "stick2d"
     assert _sweep(out, "--contact", "stick", "--closed-gap", "20") == 0
