@@ -12,6 +12,7 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py length        # tube-length convergence (L, 2L)
     python benchmarks/bench_fe3d.py mesh          # mesh convergence at fixed gaps
     python benchmarks/bench_fe3d.py meshband      # crease band and wall contact vs a fine mesh
+    python benchmarks/bench_fe3d.py meshtube      # five cross-sections on the 240 mm tube (~1 h)
     python benchmarks/bench_fe3d.py planestrain   # plane-strain 3D vs the 2D model, full stroke
     python benchmarks/bench_fe3d.py element       # crease band in plane strain: beta, cross-section
     python benchmarks/bench_fe3d.py shell         # small-deflection stiffness vs shell theory
@@ -346,6 +347,38 @@ def bench_meshband(tube_length: float = 60.0) -> dict:
     return {k: {kk: vv for kk, vv in v.items() if kk != "info"} for k, v in out.items()}
 
 
+#: the five cross-sections of the 240 mm tube study (docs/fe-model.md), reference first
+TUBE_MESHES = {
+    "3 x 24, layers 3:1 (reference)": {"n_layers": 3, "n_circ": 24, "grading": 8.0,
+                                       "radial_grading": 3.0},
+    "default 2 x 12 graded 2:1": {},
+    "2 x 24 graded 8:1": {"n_circ": 24, "grading": 8.0},
+    "2 x 36 graded 8:1": {"n_circ": 36, "grading": 8.0},
+    "3 x 36, layers 3:1": {"n_layers": 3, "n_circ": 36, "grading": 8.0, "radial_grading": 3.0},
+}  # fmt: skip
+#: bending, the approach, the crease band (2 t .. 4 t) and the compaction, for t = 1.4 mm
+TUBE_GAPS = (20.0, 10.0, 5.6, 4.9, 4.2, 3.5, 3.2, 3.0, 2.9, 2.7, 2.6)
+
+
+def bench_meshtube(meshes=TUBE_MESHES, gaps=TUBE_GAPS, tube_length: float | None = None) -> dict:
+    """Cross-sections on the default 240 mm tube (mr, t = 1.4, stick; about an hour)."""
+    out = {}
+    for label, mk in meshes.items():
+        spec = _base() if tube_length is None else _base(tube_length_mm=tube_length)
+        spec = _with_gaps(replace(spec, mesh=replace(spec.mesh, **mk)), gaps)
+        r = _run(spec, label)
+        out[label] = {"force_N": _force_at(r.table, gaps), "dofs": r.info["dofs"]}
+        out[label] |= {"newton": r.info["newton_iterations"], "wall_s": r.info["wall_time_s"]}
+    ref = next(iter(out.values()))["force_N"]
+    _header(gaps)
+    for label, v in out.items():
+        _print_row(label[:28], v["force_N"], "{:9.3f}")
+    for label, v in out.items():
+        v["rel_to_reference"] = {g: v["force_N"][g] / ref[g] - 1 for g in gaps}
+        _print_row(f"{label[:20]} / ref - 1", v["rel_to_reference"], "{:+9.3f}")
+    return out
+
+
 #: tube length (mm) of the plane-strain slices; their jaw is 2 mm longer (flat over the tube)
 PLANE_STRAIN_L = 2.0
 
@@ -523,6 +556,7 @@ SECTIONS = {
     "planestrain": bench_planestrain,
     "element": bench_element,
     "assembly": bench_assembly,
+    "meshtube": bench_meshtube,
 }
 
 
