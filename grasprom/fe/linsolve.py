@@ -64,6 +64,40 @@ def solve_symmetric(K: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
     return lu.solve(np.asarray(rhs, dtype=float))
 
 
+def descent_direction(
+    solve: Callable[[sp.spmatrix, np.ndarray], np.ndarray], K: sp.csr_matrix, r: np.ndarray
+) -> np.ndarray | None:
+    """Newton direction ``du = -K^-1 r``, with a Levenberg shift ``K + s I`` if it is not a
+    descent direction (``r . du >= 0``, e.g. past a limit point).
+
+    Parameters
+    ----------
+    solve : callable
+        Linear solver ``solve(K, rhs)`` (:func:`make_solver`).
+    K : scipy.sparse.csr_matrix
+        Tangent (N/mm), constrained dofs replaced by identity rows/columns.
+    r : ndarray
+        Residual (N), zero on the constrained dofs.
+
+    Returns
+    -------
+    ndarray or None
+        The direction (mm); None if neither ``K`` nor five growing shifts (from 1e-3 times the
+        mean absolute diagonal, x10 each) give a finite descent direction.
+    """
+    shift = 0.0
+    for _ in range(6):
+        Ks = K if shift == 0.0 else K + shift * sp.identity(K.shape[0], format="csr")
+        try:
+            du = solve(Ks, -r)
+        except RuntimeError:
+            du = None
+        if du is not None and np.all(np.isfinite(du)) and r @ du < 0:
+            return du
+        shift = 1e-3 * abs(K.diagonal()).mean() if shift == 0.0 else shift * 10.0
+    return None
+
+
 def pardiso_available() -> bool:
     """Whether ``pypardiso`` (and with it MKL's PARDISO) can be loaded."""
     try:

@@ -37,7 +37,7 @@ import pandas as pd
 import scipy.sparse as sp
 
 from grasprom.fe.crease import CreaseOnset, crease_onset, hermite_energy, splice_crease
-from grasprom.fe.linsolve import make_solver, solve_symmetric, solver_name
+from grasprom.fe.linsolve import descent_direction, make_solver, solve_symmetric, solver_name
 from grasprom.fe.materials import Material, cofactor, get_material, pointwise_tangent
 
 #: columns every case CSV must hold (a contract other tools rely on)
@@ -681,22 +681,6 @@ def _prox_terms(disc, fixed: np.ndarray, prox):
     return e, (lambda u: c * (u - u_ref) * free), sp.diags(c * free, format="csr")
 
 
-def _descent(disc, Kc: sp.csr_matrix, r: np.ndarray, solve) -> np.ndarray:
-    """Newton direction ``-Kc^-1 r`` with a Levenberg shift if it is not a descent direction
-    (``solve(K, rhs)``: the linear solver)."""
-    shift = 0.0
-    for _ in range(6):
-        Ks = Kc if shift == 0.0 else Kc + shift * sp.identity(disc.ndof, format="csr")
-        try:
-            du = solve(Ks, -r)
-        except RuntimeError:
-            du = None
-        if du is not None and np.all(np.isfinite(du)) and r @ du < 0:
-            return du
-        shift = 1e-3 * abs(Kc.diagonal()).mean() if shift == 0.0 else shift * 10.0
-    raise _NewtonFailure("no descent direction")
-
-
 def _newton(
     disc,
     material,
@@ -745,7 +729,9 @@ def _newton(
         rnorm = np.linalg.norm(r)
         if rnorm <= tol:
             return u, (f - f_x(u) if extra is not None else f), K, it - 1
-        du = _descent(disc, _constrained_system(disc, K, fixed), r, solve)
+        du = descent_direction(solve, _constrained_system(disc, K, fixed), r)
+        if du is None:
+            raise _NewtonFailure("no descent direction")
         du[fixed] = 0.0
         e0 = energy_p(u)
         slope = r @ du

@@ -41,7 +41,7 @@ import scipy.sparse as sp
 from grasprom.fe.crease import CreaseOnset, crease_onset, hermite_energy, splice_crease
 from grasprom.fe.hyperelastic3d import invariants as _invariants
 from grasprom.fe.hyperelastic3d import pointwise3d, stress_and_tangent
-from grasprom.fe.linsolve import make_solver, solver_name
+from grasprom.fe.linsolve import descent_direction, make_solver, solver_name
 from grasprom.fe.materials import Material, get_material
 from grasprom.fe.mesh3d import Disc3D, MeshSpec3D, axial_nodes, discretise3d
 from grasprom.fe.model2d import (
@@ -633,21 +633,6 @@ class _NewtonFailure(Exception):
     pass
 
 
-def _descent(st: _Setup, Kc: sp.csr_matrix, r: np.ndarray) -> np.ndarray:
-    """Newton direction ``-Kc^-1 r`` with a Levenberg shift if it is not a descent direction."""
-    shift = 0.0
-    for _ in range(6):
-        Ks = Kc if shift == 0.0 else Kc + shift * sp.identity(Kc.shape[0], format="csr")
-        try:
-            du = st.solver(Ks, -r)
-        except RuntimeError:
-            du = None
-        if du is not None and np.all(np.isfinite(du)) and r @ du < 0:
-            return du
-        shift = 1e-3 * abs(Kc.diagonal()).mean() if shift == 0.0 else shift * 10.0
-    raise _NewtonFailure("no descent direction")
-
-
 def _line_search(st: _Setup, u, du, slope, rnorm, cons, h, amax: float = 1.0, fric=None):
     """Energy line search along ``du`` (projected on the constraints) from ``alpha = amax``.
 
@@ -737,7 +722,9 @@ def _newton(st: _Setup, u, cons, h, c: _Contact, rtol: float | None = None, fric
         if rnorm <= tol:
             return u, internal(f, u), K, it - 1, False
         Kr = fr_.tangent(K, f, st.jaw.r)
-        dv = _descent(st, _constrained(st, Kr, fr_.fixed, fr_.Q is not None), r)
+        dv = descent_direction(st.solver, _constrained(st, Kr, fr_.fixed, fr_.Q is not None), r)
+        if dv is None:
+            raise _NewtonFailure("no descent direction")
         dv[fr_.fixed] = 0.0
         du = dv if fr_.Q is None else fr_.Q @ dv
         amax = _feasible_alpha(st, c, u, du, cons, h)

@@ -131,3 +131,24 @@ def test_2d_case_is_the_same_with_either_solver():
     assert np.allclose(b.table["force_N"], a.table["force_N"], rtol=1e-7, atol=1e-12)
     assert b.info["linear_solver"].startswith("MKL PARDISO")
     assert a.info["linear_solver"].startswith("scipy SuperLU")
+
+
+def test_descent_direction_newton_step_then_levenberg_shift():
+    """``-K^-1 r`` when it descends; on a negative definite ``K = -I`` the shifts 1e-3, 1e-2,
+    0.1, 1 do not descend and 10 does: ``du = -r / 9``; a curvature of -1e6 among 99 ones is
+    beyond the largest shift (10 x the mean diagonal, 1e5) along its own direction (None)."""
+    from grasprom.fe.linsolve import descent_direction, solve_symmetric
+
+    rng = np.random.default_rng(4)
+    B = rng.standard_normal((6, 6))
+    K = sp.csr_matrix(B @ B.T + 6 * np.eye(6))
+    r = rng.standard_normal(6)
+    du = descent_direction(solve_symmetric, K, r)
+    np.testing.assert_allclose(du, -np.linalg.solve(K.toarray(), r), rtol=1e-12)
+    du = descent_direction(solve_symmetric, -sp.identity(6, format="csr"), r)
+    np.testing.assert_allclose(du, -r / 9.0, rtol=1e-12)
+    d = np.ones(100)
+    d[0] = -1e6
+    e0 = np.zeros(100)
+    e0[0] = 1.0
+    assert descent_direction(solve_symmetric, sp.diags(d, format="csr"), e0) is None
