@@ -68,6 +68,14 @@ class MeshSpec3D:
     radial_grading: float = 1.0
 
     def __post_init__(self) -> None:
+        for name, least in (("n_layers", 1), ("n_circ", 2), ("n_jaw", 1), ("n_free", 0)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < least:
+                raise ValueError(f"mesh too coarse: {name}={v!r} (an integer >= {least})")
+        if not (np.isfinite(self.fine_margin_mm) and self.fine_margin_mm >= 0):
+            raise ValueError(f"invalid fine_margin_mm={self.fine_margin_mm!r}: a length >= 0 mm")
+        if self.element not in ELEMENTS_3D:
+            raise ValueError(f"unknown element {self.element!r}; valid: {', '.join(ELEMENTS_3D)}")
         for name in ("grading", "radial_grading"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
@@ -96,9 +104,7 @@ def tube_mesh(outer_radius: float, thickness: float, z_nodes: np.ndarray, mesh: 
     """Hexahedral mesh (skfem ``MeshHex``) of the 1/8 tube on the given axial nodes (mm)."""
     import skfem
 
-    nl, nc = int(mesh.n_layers), int(mesh.n_circ)
-    if nl < 1 or nc < 2:
-        raise ValueError(f"mesh too coarse: n_layers={nl} (>= 1), n_circ={nc} (>= 2)")
+    nl, nc = mesh.n_layers, mesh.n_circ  # validated by MeshSpec3D
     if mesh.radial_grading == 1.0:  # bit for bit the uniform layers of before
         r = np.linspace(outer_radius - thickness, outer_radius, nl + 1)
     else:
@@ -190,8 +196,6 @@ def discretise3d(outer_radius: float, thickness: float, z_nodes: np.ndarray, mes
     """Basis, quadrature data, boundary sets and the sparse assembly map of the 1/8 tube."""
     import skfem
 
-    if mesh.element not in ELEMENTS_3D:
-        raise ValueError(f"unknown element {mesh.element!r}; valid: {', '.join(ELEMENTS_3D)}")
     m = tube_mesh(outer_radius, thickness, z_nodes, mesh)
     elem = skfem.ElementHex2()
     basis = skfem.Basis(m, elem, intorder=4)

@@ -36,7 +36,9 @@ def test_outer_and_inner_walls_cover_the_quarter_and_their_area(n_circ, n_layers
 @pytest.mark.parametrize(
     "kw",
     [{"grading": 0.0}, {"grading": float("nan")}, {"radial_grading": -2.0},
-     {"beta": -0.1}, {"beta": 1.5}, {"beta": float("inf")}],
+     {"beta": -0.1}, {"beta": 1.5}, {"beta": float("inf")}, {"n_layers": 0},
+     {"n_circ": 1}, {"n_circ": 2.5}, {"n_jaw": 0}, {"n_free": -1}, {"n_layers": True},
+     {"fine_margin_mm": -1.0}, {"element": "Q1/P0"}],
 )  # fmt: skip
 def test_mesh_spec_rejects_bad_ratios_and_shares(kw):
     with pytest.raises(ValueError, match=next(iter(kw))):
