@@ -535,9 +535,8 @@ def bench_assembly() -> dict:
         label: _assembly_times(label, mesh)
         for label, mesh in (("default 2 x 12", MeshSpec3D()), ("2 x 24 g8", FOLD_MESH))
     }
-    t0 = time.perf_counter()
     res = _run(_base(), "default case")
-    out["default_case_s"] = time.perf_counter() - t0
+    out["default_case_s"] = res.info["wall_time_s"]
     out["newton_iterations"] = res.info["newton_iterations"]
     return out
 

@@ -140,8 +140,7 @@ def stress_and_tangent(
     c[..., 0, 2] = c[..., 2, 0] = W_1J
     c[..., 1, 2] = c[..., 2, 1] = W_2J
     A += np.matmul(M.swapaxes(-1, -2), np.matmul(c, M))
-    A = A4
-    return P, A, J, H
+    return P, A4, J, H
 
 
 def strain_energy3d(material: Material, F: np.ndarray, theta: np.ndarray | None = None):

@@ -140,7 +140,6 @@ class Disc3D:
     on_end: np.ndarray  # z = L/2
     rows: np.ndarray
     cols: np.ndarray
-    scatter: np.ndarray
     indptr: np.ndarray
     indices: np.ndarray
     diag_pos: np.ndarray
@@ -247,7 +246,6 @@ def discretise3d(outer_radius: float, thickness: float, z_nodes: np.ndarray, mes
         on_end=np.abs(X[:, 2] - half) < tol,
         rows=rows,
         cols=cols,
-        scatter=scatter,
         indptr=indptr,
         indices=cols.astype(np.int32),
         diag_pos=diag_pos,

@@ -37,7 +37,7 @@ import pandas as pd
 import scipy.sparse as sp
 
 from grasprom.fe.crease import CreaseOnset, crease_onset, hermite_energy, splice_crease
-from grasprom.fe.linsolve import descent_direction, make_solver, solve_symmetric, solver_name
+from grasprom.fe.linsolve import descent_direction, make_solver, solver_name
 from grasprom.fe.materials import Material, cofactor, get_material, pointwise_tangent
 
 #: columns every case CSV must hold (a contract other tools rely on)
@@ -690,7 +690,8 @@ def _newton(
     fscale: float,
     prox=None,
     extra=None,
-    solve=solve_symmetric,
+    *,
+    solve,
 ):
     """Newton-Raphson with energy line search on the free dofs; returns (u, f, K, iters).
 
@@ -884,7 +885,8 @@ def _solve_step(
     settings: SolverSettings,
     fscale,
     prox=None,
-    solve=solve_symmetric,
+    *,
+    solve,
 ):
     """Solve equilibrium at jaw height ``h`` (mm) with the active-set loop.
 
@@ -920,7 +922,7 @@ def _solve_step(
                     u = u + dfree
             u = u + jump
         extra = fric.terms(disc, jaw_active) if fric is not None else None
-        u, f, K, it = _newton(disc, material, u, fixed, settings, fscale, prox, extra, solve)
+        u, f, K, it = _newton(disc, material, u, fixed, settings, fscale, prox, extra, solve=solve)
         lag, iters = (lag + it, iters) if lagged else (lag, iters + it)
         K_old = K
         y = disc.X[:, 1] + u[1::2]
@@ -972,7 +974,7 @@ def _crease_onset(
     settings,
     fscale,
     landing,
-    solve=solve_symmetric,
+    solve,
 ):
     """Continue a snapped (creased) state back to larger jaw heights while its strain energy
     stays below the smooth branch's (``branch``, :func:`grasprom.fe.crease.hermite_energy`), up
@@ -1003,9 +1005,7 @@ def _splice_crease(disc, material, rows: list, branch: list, back: CreaseOnset, 
     return splice_crease(rows, branch, back, entry)
 
 
-def _relax(
-    disc, material, state: _State, h: float, settings: SolverSettings, fscale, solve=solve_symmetric
-):
+def _relax(disc, material, state: _State, h: float, settings: SolverSettings, fscale, solve):
     """Equilibrium at jaw height ``h`` (mm) past a snap, by proximal-point iteration.
 
     Where the wall snaps (the flattened wall buckles inward in the crease band), no equilibrium
@@ -1022,7 +1022,7 @@ def _relax(
     for _ in range(settings.max_relax):
         try:
             current, _ = _solve_step(
-                disc, material, current, h, settings, fscale, (c, current.u), solve
+                disc, material, current, h, settings, fscale, (c, current.u), solve=solve
             )
         except _STEP_ERRORS:
             c *= 4.0
