@@ -17,6 +17,7 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py element       # crease band in plane strain: beta, cross-section
     python benchmarks/bench_fe3d.py shell         # small-deflection stiffness vs shell theory
     python benchmarks/bench_fe3d.py assembly      # tangent assembly vs a plain einsum, default case
+    python benchmarks/bench_fe3d.py ccx           # against CalculiX, frictionless, 3 meshes (~1 h)
 
 Forces in N, gaps in mm.  t = 1.4 mm, Mooney-Rivlin, unless stated.  Timings are wall-clock on
 whatever machine runs this (noisy when shared).
@@ -541,6 +542,48 @@ def bench_assembly() -> dict:
     return out
 
 
+CCX_MESHES = {
+    "default 2 x 12 graded 2:1": {},
+    "2 x 24 graded 8:1": {"n_circ": 24, "grading": 8.0},
+    "3 x 24, layers 3:1": {"n_layers": 3, "n_circ": 24, "grading": 8.0, "radial_grading": 3.0},
+}  # fmt: skip
+
+
+def bench_ccx(meshes=CCX_MESHES, gaps=TUBE_GAPS, workdir: str | None = None) -> dict:
+    """Against CalculiX (a second code) on the 240 mm tube: mr, t = 1.4, frictionless (~1 h).
+
+    Needs ``ccx`` (``apt-get install calculix-ccx``).  CalculiX's Newton has no path control
+    through a crease, so it may stop in the crease band; its last converged gap is printed.
+    """
+    import tempfile
+
+    from grasprom.fe.ccx import run_ccx
+
+    out = {}
+    for label, mk in meshes.items():
+        spec = _with_gaps(replace(_base(contact="frictionless"), mesh=MeshSpec3D(**mk)), gaps)
+        ours = _force_at(_run(spec, label).table, gaps)
+        with tempfile.TemporaryDirectory(dir=workdir) as tmp:
+            res = run_ccx(spec, tmp, min(gaps))
+        tb = res.table.iloc[::-1]
+        ref = {g: float(np.interp(g, tb.gap_mm, tb.force_N)) for g in gaps}
+        ref = {g: (v if g >= tb.gap_mm.min() - 1e-9 else float("nan")) for g, v in ref.items()}
+        print(
+            f"[ccx {label}] completed {res.completed}, last gap {tb.gap_mm.min():.3f} mm, "
+            f"{len(tb)} increments, wall {res.wall_time_s:.0f} s, {res.deck.n_tube_nodes} nodes",
+            flush=True,
+        )
+        out[label] = {"ours": ours, "ccx": ref, "ccx_completed": res.completed}
+        out[label]["ccx_wall_s"] = res.wall_time_s
+    _header(gaps)
+    for label, v in out.items():
+        _print_row(f"{label[:20]} ours", v["ours"], "{:9.3f}")
+        _print_row(f"{label[:20]} ccx", v["ccx"], "{:9.3f}")
+        v["ours_over_ccx"] = {g: v["ours"][g] / v["ccx"][g] - 1 for g in gaps}
+        _print_row(f"{label[:20]} ours/ccx-1", v["ours_over_ccx"], "{:+9.3f}")
+    return out
+
+
 SECTIONS = {
     "shell": bench_shell,
     "default": bench_default,
@@ -556,6 +599,7 @@ SECTIONS = {
     "element": bench_element,
     "assembly": bench_assembly,
     "meshtube": bench_meshtube,
+    "ccx": bench_ccx,
 }
 
 
