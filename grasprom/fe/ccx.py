@@ -339,6 +339,8 @@ def _step_lines(spec: CaseSpec3D, opt: CcxOptions, stroke: float) -> list[str]:
     out += ["JAWN, 1, 1", "JAWN, 3, 3"]
     if spec.ends == "seed":
         out += ["ENDN, 1, 2"]
+    if spec.plane_strain:
+        out += ["TUBEN, 3, 3"]
     return out + [
         "*STEP, NLGEOM, INC=100000",
         "*STATIC, DIRECT" if opt.fixed_increments else "*STATIC",
@@ -359,8 +361,8 @@ def write_deck(
     Parameters
     ----------
     spec : CaseSpec3D
-        The case (material, geometry, mesh divisions, contact, ends); ``plane_strain`` is not
-        supported.
+        The case (material, geometry, mesh divisions, contact, ends; ``plane_strain`` holds
+        ``u_z = 0`` on every tube node, as the 3D model's).
     path : path-like
         The ``.inp`` file to write (its folder must exist).
     gap_end_mm : float
@@ -375,8 +377,8 @@ def write_deck(
     D = spec.diameter_mm
     if not (np.isfinite(gap_end_mm) and 0.0 < gap_end_mm < D):
         raise ValueError(f"invalid gap_end_mm={gap_end_mm!r}: between 0 and {D} mm")
-    if spec.plane_strain:
-        raise ValueError("the CalculiX deck models the full 3D tube, not plane_strain=True")
+    if spec.plane_strain and spec.jaw_length_mm < spec.tube_length_mm:
+        raise ValueError("plane_strain=True needs a jaw at least as long as the tube")
     stroke = 0.5 * (D - gap_end_mm)
     P, ids, ne = _tube_nodes(spec)
     conn, layer, _, _ = _tube_elements(ids, ne)
