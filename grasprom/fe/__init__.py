@@ -5,7 +5,8 @@ Modules: ``materials`` (constitutive laws), ``model2d`` (the plane-strain clampe
 :func:`run_case`), ``grid`` (the thickness x material grid, :func:`build_grid`), ``sweep``
 (running a grid resumably, :func:`run_sweep`), ``datafiles`` (the on-disk case and manifest
 format) with ``atomicio`` (atomic writes, JSON encoding) and ``provenance`` (versions, git
-revision, time stamps), ``report`` (summary table) and ``plots`` (force-gap figure).
+revision, time stamps), ``report`` (summary table) and ``plots`` (force-gap figure); ``model3d``
+(the 3D tube, :func:`run_case_3d`) and ``ccx`` (the same case in CalculiX, :func:`run_ccx`).
 
 The names below are imported on first use (PEP 562), so ``import grasprom.fe.materials`` or
 ``from grasprom.fe import MATERIAL_NAMES`` does not pull in scikit-fem and pandas.
@@ -20,6 +21,7 @@ _LAZY = {
     "CaseSpec3D": "model3d",
     "MeshSpec3D": "mesh3d",
     "run_case_3d": "model3d",
+    "run_ccx": "ccx",
     "CaseResult": "model2d",
     "CaseSpec": "model2d",
     "CorruptCaseError": "datafiles",

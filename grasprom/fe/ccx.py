@@ -70,7 +70,9 @@ class CcxOptions:
         lets a 1 MPa contact pressure penetrate 1 micrometre.
     stick_friction : float
         Coulomb coefficient (-) standing in for ``contact="stick"`` (no sliding): far above the
-        tangential share of the jaw reaction (about 1 at most in the 3D model).
+        tangential share of the jaw reaction (about 1 at most in the 3D model).  CalculiX 2.20
+        did not converge with it past gaps of 13-18 mm (coefficients 2-5, stick slopes 20-1000
+        MPa/mm), so stick decks serve the early bending only.
     tangential_stiffness_MPa_per_mm : float
         Stick slope of the friction law (MPa/mm).
     initial_increment, max_increment : float
@@ -185,12 +187,11 @@ def _tube_nodes(spec: CaseSpec3D):
 
 
 def _tube_elements(ids: np.ndarray, ne: tuple[int, int, int]):
-    """C3D20 connectivity (ne, 20) and the element's (layer, circumferential, axial) index."""
+    """C3D20 connectivity (ne, 20) and each element's layer (0 = the inner wall)."""
     i, j, k = (a.ravel() for a in np.indices(ne))
     base = 2 * np.column_stack([i, j, k])
     corners = base[:, None, :] + _C3D20[None, :, :]
-    conn = ids[corners[..., 0], corners[..., 1], corners[..., 2]]
-    return conn, i, j, k
+    return ids[corners[..., 0], corners[..., 1], corners[..., 2]], i
 
 
 def _hex8_volume(p: np.ndarray) -> np.ndarray:
@@ -381,7 +382,7 @@ def write_deck(
         raise ValueError("plane_strain=True needs a jaw at least as long as the tube")
     stroke = 0.5 * (D - gap_end_mm)
     P, ids, ne = _tube_nodes(spec)
-    conn, layer, _, _ = _tube_elements(ids, ne)
+    conn, layer = _tube_elements(ids, ne)
     keep = ids > 0
     X = P[keep]
     n_el = conn.shape[0]
