@@ -41,9 +41,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from grasprom.fe.mesh3d import axial_nodes
-from grasprom.fe.model2d import graded_fractions
-from grasprom.fe.model3d import CaseSpec3D
+from grasprom.fe.mesh3d import ring_nodes
+from grasprom.fe.model3d import CaseSpec3D, axial_grid
 
 CCX_PACKAGE = "calculix-ccx"
 """Debian package that provides the ``ccx`` executable."""
@@ -78,7 +77,8 @@ class CcxOptions:
     initial_increment, max_increment : float
         First and largest increment as a share of the jaw stroke (-).
     jaw_divisions : int
-        Elements across the meshed rigid jaw (``x``) and, per mm, along its flat part.
+        Elements across the meshed rigid jaw (``x``); its flat half-length ``a`` (mm) gets
+        ``ceil(jaw_divisions a / 8)`` of them (2 per mm at the default), its edge arc 12.
     fixed_increments : bool
         Fixed increments of ``initial_increment`` (``*STATIC, DIRECT``), so the increments land on
         known gaps, instead of CalculiX's automatic incrementation.
@@ -155,17 +155,10 @@ class CcxResult:
 
 
 def _tube_nodes(spec: CaseSpec3D):
-    """C3D20 node positions on the structured half-index grid, ids (0 = not a node)."""
-    m = spec.mesh
-    R, t = 0.5 * spec.diameter_mm, spec.thickness_mm
-    half = 0.5 * spec.tube_length_mm
-    z_fine = min(half, 0.5 * spec.jaw_length_mm + m.fine_margin_mm)
-    z = axial_nodes(half, z_fine, m.n_jaw, m.n_free)
-    if m.radial_grading == 1.0:
-        r = np.linspace(R - t, R, m.n_layers + 1)
-    else:
-        r = R - t + t * graded_fractions(m.n_layers, m.radial_grading)
-    th = 0.5 * np.pi * graded_fractions(m.n_circ, m.grading)
+    """C3D20 node positions on the structured half-index grid, ids (0 = not a node): the
+    corner nodes are those of :func:`grasprom.fe.mesh3d.tube_mesh` on the model's axial grid."""
+    r, th = ring_nodes(0.5 * spec.diameter_mm, spec.thickness_mm, spec.mesh)
+    z = axial_grid(spec)
     x = np.outer(r, np.cos(th))
     y = np.outer(r, np.sin(th))
     x[:, -1] = 0.0
@@ -464,9 +457,8 @@ def run_ccx(
         [exe, "-i", "case"], cwd=work, capture_output=True, text=True, env=env, timeout=timeout_s
     )
     wall = time.perf_counter() - t0
-    reac = (
-        read_jaw_reactions(work / "case.dat") if (work / "case.dat").exists() else np.zeros((0, 4))
-    )
+    dat = work / "case.dat"
+    reac = read_jaw_reactions(dat) if dat.exists() else np.zeros((0, 4))
     disp = deck.stroke_mm * reac[:, 0]
     table = pd.DataFrame(
         {

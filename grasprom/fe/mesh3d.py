@@ -100,16 +100,22 @@ def axial_nodes(half_length: float, z_fine: float, n_jaw: int, n_free: int) -> n
     return np.concatenate([z1, z2[1:]])
 
 
-def tube_mesh(outer_radius: float, thickness: float, z_nodes: np.ndarray, mesh: MeshSpec3D):
-    """Hexahedral mesh (skfem ``MeshHex``) of the 1/8 tube on the given axial nodes (mm)."""
-    import skfem
-
+def ring_nodes(outer_radius: float, thickness: float, mesh: MeshSpec3D):
+    """Radii (mm) of the layer interfaces and angles (rad, 0 .. pi/2) of the circumferential
+    element boundaries of the 1/8 tube's cross-section."""
     nl, nc = mesh.n_layers, mesh.n_circ  # validated by MeshSpec3D
     if mesh.radial_grading == 1.0:  # bit for bit the uniform layers of before
         r = np.linspace(outer_radius - thickness, outer_radius, nl + 1)
     else:
         r = outer_radius - thickness + thickness * graded_fractions(nl, mesh.radial_grading)
-    th = 0.5 * np.pi * graded_fractions(nc, mesh.grading)
+    return r, 0.5 * np.pi * graded_fractions(nc, mesh.grading)
+
+
+def tube_mesh(outer_radius: float, thickness: float, z_nodes: np.ndarray, mesh: MeshSpec3D):
+    """Hexahedral mesh (skfem ``MeshHex``) of the 1/8 tube on the given axial nodes (mm)."""
+    import skfem
+
+    r, th = ring_nodes(outer_radius, thickness, mesh)
     m = skfem.MeshHex.init_tensor(r, th, np.asarray(z_nodes, dtype=float))
     rho, t, z = m.p
     x = rho * np.cos(t)

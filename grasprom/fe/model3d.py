@@ -141,12 +141,16 @@ class CaseSpec3D:
         return 0.5 * self.jaw_length_mm - self.jaw_edge_radius_mm
 
 
-def build_disc(spec: CaseSpec3D) -> Disc3D:
-    """Discretisation of the case's 1/8 tube (axial mesh refined over the jaw)."""
+def axial_grid(spec: CaseSpec3D) -> np.ndarray:
+    """Axial node positions (mm) of the case's half tube, refined over the jaw and its edge."""
     half = 0.5 * spec.tube_length_mm
     z_fine = min(half, 0.5 * spec.jaw_length_mm + spec.mesh.fine_margin_mm)
-    z = axial_nodes(half, z_fine, spec.mesh.n_jaw, spec.mesh.n_free)
-    return discretise3d(0.5 * spec.diameter_mm, spec.thickness_mm, z, spec.mesh)
+    return axial_nodes(half, z_fine, spec.mesh.n_jaw, spec.mesh.n_free)
+
+
+def build_disc(spec: CaseSpec3D) -> Disc3D:
+    """Discretisation of the case's 1/8 tube (axial mesh refined over the jaw)."""
+    return discretise3d(0.5 * spec.diameter_mm, spec.thickness_mm, axial_grid(spec), spec.mesh)
 
 
 # ----------------------------------------------------------------------------------------------
