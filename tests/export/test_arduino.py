@@ -8,8 +8,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
-import shutil
 import subprocess
 from pathlib import Path
 
@@ -18,17 +16,7 @@ import pytest
 
 from grasprom.control import ControllerParams, ImpedanceController
 from grasprom.export import arduino as ar
-
-CI = os.environ.get("CI") == "true"
-
-
-def need(tool: str, package: str) -> None:
-    """Skip locally, fail on CI, when a tool is missing."""
-    if shutil.which(tool) is None:
-        msg = f"{tool} not found: apt-get install {package}"
-        if CI:
-            pytest.fail(msg)
-        pytest.skip(msg)
+from tests.tools import CI, need
 
 
 def need_simavr() -> None:

@@ -15,7 +15,8 @@ import sys
 from pathlib import Path
 
 from grasprom.export import arduino as ar
-from tests.export.test_arduino import need, need_simavr
+from tests.export.test_arduino import need_simavr
+from tests.tools import need
 
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_LINE = re.compile(

@@ -23,7 +23,8 @@ import pytest
 from grasprom.control import ControllerParams
 from grasprom.export import arduino as ar
 from grasprom.export.arduino import simbench as sb
-from tests.export.test_arduino import CI, need, need_simavr
+from tests.export.test_arduino import need_simavr
+from tests.tools import CI, need
 
 WGM_MODE14 = (0x02, 0x18)  # WGM11 in TCCR1A; WGM13 | WGM12 in TCCR1B
 COM1A1, COM1B1, COM1B0 = 0x80, 0x20, 0x10

@@ -8,8 +8,6 @@ parity.  CI installs ``calculix-ccx``; with ``CI=true`` a missing ``ccx`` fails,
 
 from __future__ import annotations
 
-import os
-import shutil
 from dataclasses import replace
 
 import numpy as np
@@ -19,22 +17,12 @@ from grasprom.fe.ccx import CcxOptions, read_jaw_reactions, run_ccx, write_deck
 from grasprom.fe.mesh3d import MeshSpec3D
 from grasprom.fe.model2d import CaseSpec, SolverSettings, run_case
 from grasprom.fe.model3d import CaseSpec3D, build_disc, run_case_3d
-
-CI = os.environ.get("CI") == "true"
+from tests.tools import need
 
 #: a short tube on the default cross-section: bending up to gap 20 mm in about 20 s of ccx
 SHORT = CaseSpec3D(
     "mr", 1.4, tube_length_mm=60.0, contact="frictionless", mesh=MeshSpec3D(n_free=4)
 )
-
-
-def need_ccx() -> None:
-    """Skip locally, fail on CI, when CalculiX is missing."""
-    if shutil.which("ccx") is None:
-        msg = "ccx not found: apt-get install calculix-ccx"
-        if CI:
-            pytest.fail(msg)
-        pytest.skip(msg)
 
 
 def test_deck_meshes_the_same_tube_as_the_3d_model(tmp_path):
@@ -129,7 +117,7 @@ def test_3d_model_bends_the_tube_as_calculix_does(tmp_path):
     1.7 % at gaps 28-27.5 mm and 1.2 % at 24.5 mm: CalculiX's mortar contact ripples as the
     contact spreads over the coarse faces, grasprom's contact is nodal), within 1 % from gap
     23.5 mm on (measured 0.1-0.5 %); about 80 s."""
-    need_ccx()
+    need("ccx", "calculix-ccx")
     opts = CcxOptions(initial_increment=0.05, max_increment=0.05, fixed_increments=True)
     res = run_ccx(SHORT, tmp_path, 20.0, opts)
     assert res.completed, res.log
@@ -161,7 +149,7 @@ def test_2d_model_folds_the_ring_as_calculix_does_in_plane_strain(tmp_path):
     """The 2D model (P2B/P1, its default mesh) against CalculiX's plane-strain slice, mr
     t = 1.4 mm, frictionless, from bending to the fold's approach to the crease band (gaps
     20-5 mm): within 1 % (measured 0.3-0.6 %); about 30 s."""
-    need_ccx()
+    need("ccx", "calculix-ccx")
     gaps = (20.0, 10.0, 6.0, 5.5, 5.0)
     res = run_ccx(SLICE, tmp_path, 4.8)
     assert res.completed, res.log
