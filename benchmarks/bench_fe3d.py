@@ -542,11 +542,11 @@ def bench_assembly() -> dict:
     return out
 
 
+#: three of the mesh study's cross-sections (``TUBE_MESHES``), coarsest first
 CCX_MESHES = {
-    "default 2 x 12 graded 2:1": {},
-    "2 x 24 graded 8:1": {"n_circ": 24, "grading": 8.0},
-    "3 x 24, layers 3:1": {"n_layers": 3, "n_circ": 24, "grading": 8.0, "radial_grading": 3.0},
-}  # fmt: skip
+    k: TUBE_MESHES[k]
+    for k in ("default 2 x 12 graded 2:1", "2 x 24 graded 8:1", "3 x 24, layers 3:1 (reference)")
+}
 
 
 def bench_ccx(meshes=CCX_MESHES, gaps=TUBE_GAPS, workdir: str | None = None) -> dict:
