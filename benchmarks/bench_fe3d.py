@@ -13,6 +13,7 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py mesh          # mesh convergence at fixed gaps
     python benchmarks/bench_fe3d.py meshband      # crease band and wall contact vs a fine mesh
     python benchmarks/bench_fe3d.py meshtube      # five cross-sections on the 240 mm tube (~1 h)
+    python benchmarks/bench_fe3d.py layers        # four and five layers through the wall (~1.5 h)
     python benchmarks/bench_fe3d.py planestrain   # plane-strain 3D vs the 2D model, full stroke
     python benchmarks/bench_fe3d.py element       # crease band in plane strain: beta, cross-section
     python benchmarks/bench_fe3d.py shell         # small-deflection stiffness vs shell theory
@@ -380,6 +381,41 @@ def bench_meshtube(meshes=TUBE_MESHES, gaps=TUBE_GAPS, tube_length: float | None
     return out
 
 
+#: gaps of the through-the-wall study: bending, the crease band (2t..4t), the walls' knee and
+#: the compaction rise, for t = 1.4 mm
+LAYER_GAPS = (10.0, 6.0, 5.0, 4.5, 4.0, 3.5, 3.0, 2.9, 2.8, 2.7, 2.6, 2.5)
+#: cross-sections with four and five layers through the wall (graded 8:1 toward the side
+#: fold), the reference first, and the default's for comparison
+LAYER_MESHES = {
+    "4 x 48 (reference)": {"n_layers": 4, "n_circ": 48, "grading": 8.0},
+    "4 x 24": {"n_layers": 4, "n_circ": 24, "grading": 8.0},
+    "4 x 36": {"n_layers": 4, "n_circ": 36, "grading": 8.0},
+    "4 x 64": {"n_layers": 4, "n_circ": 64, "grading": 8.0},
+    "5 x 36": {"n_layers": 5, "n_circ": 36, "grading": 8.0},
+    "default 2 x 12 graded 2:1": {},
+}  # fmt: skip
+
+
+def bench_layers(meshes=LAYER_MESHES, gaps=LAYER_GAPS, tube_length: float = 60.0) -> dict:
+    """Crease band with four and five layers through the wall (mr, t = 1.4, stick, 60 mm tube,
+    4 axial divisions over the jaw; about 1.5 h): force at fixed gaps against 4 x 48."""
+    out = {}
+    for label, mk in meshes.items():
+        spec = CaseSpec3D("mr", T, tube_length_mm=tube_length)
+        spec = replace(spec, mesh=replace(spec.mesh, n_free=3, **mk))
+        r = _run(_with_gaps(spec, gaps), label)
+        out[label] = {"force_N": _force_at(r.table, gaps), "dofs": r.info["dofs"]}
+        out[label] |= {"newton": r.info["newton_iterations"], "wall_s": r.info["wall_time_s"]}
+    ref = next(iter(out.values()))["force_N"]
+    _header(gaps)
+    for label, v in out.items():
+        _print_row(label[:28], v["force_N"], "{:9.3f}")
+    for label, v in out.items():
+        v["rel_to_reference"] = {g: v["force_N"][g] / ref[g] - 1 for g in gaps}
+        _print_row(f"{label[:20]} / ref - 1", v["rel_to_reference"], "{:+9.3f}")
+    return out
+
+
 #: tube length (mm) of the plane-strain slices; their jaw is 2 mm longer (flat over the tube)
 PLANE_STRAIN_L = 2.0
 
@@ -416,7 +452,7 @@ def bench_planestrain(nc: int = 32) -> dict:
 
 
 #: crease band at t = 1.4 (2t..4t) with the bending point 10 and the walls meeting 2t + 0.05
-BAND_GAPS = (10.0, 6.0, 5.5, 5.0, 4.5, 4.0, 3.5, 3.2, 3.0, 2.9, 2.85)
+ELEMENT_GAPS = (10.0, 6.0, 5.5, 5.0, 4.5, 4.0, 3.5, 3.2, 3.0, 2.9, 2.85)
 #: (label, n_layers, n_circ, grading, radial_grading, beta): the spurious instability of the
 #: mixed element (beta 0, 0.01) and the cross-sections, coarse to the 2x refinement
 ELEMENT_CASES = (
@@ -434,7 +470,7 @@ ELEMENT_CASES = (
 
 def bench_element() -> dict:
     """Crease band in plane strain (frictionless, mr t = 1.4): 3D Q2/P1 vs the 2D model."""
-    gaps = BAND_GAPS
+    gaps = ELEMENT_GAPS
     ref = {}
     for label, mesh in (("2D default", MeshSpec()), ("2D refined", MeshSpec().refined(2))):
         t0 = time.perf_counter()
@@ -599,6 +635,7 @@ SECTIONS = {
     "element": bench_element,
     "assembly": bench_assembly,
     "meshtube": bench_meshtube,
+    "layers": bench_layers,
     "ccx": bench_ccx,
 }
 
