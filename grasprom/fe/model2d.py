@@ -39,6 +39,7 @@ import scipy.sparse as sp
 from grasprom.fe.crease import CreaseOnset, crease_onset, hermite_energy, splice_crease
 from grasprom.fe.linsolve import descent_direction, make_solver, solver_name
 from grasprom.fe.materials import Material, cofactor, get_material, pointwise_tangent
+from grasprom.fe.stepping import land_on
 
 #: columns every case CSV must hold (a contract other tools rely on)
 CONTRACT_COLUMNS = (
@@ -220,7 +221,8 @@ class SolverSettings:
         Residual tolerance relative to the force scale ``mu * t`` (N/mm).
     land_on_gaps_mm : tuple of float
         Jaw gaps (mm) the stepping lands on exactly (a converged step at each), e.g. to compare
-        meshes at fixed gaps without interpolation error.
+        meshes at fixed gaps without interpolation error; a step that would stop just above one
+        is stretched onto it (:func:`grasprom.fe.stepping.land_on`).
     relax_below_mm : float
         A jaw step this small (mm) that Newton cannot solve is taken as a snap of the wall and
         solved by proximal-point relaxation (:func:`_relax`); 0 turns that off.
@@ -1203,10 +1205,7 @@ def _limit_step(
         dh = min(dh, max(0.01 * t, s.approach_fraction * (h - t)))
     if t < h <= 2.0 * t + 1e-12:  # crease band
         dh = min(dh, s.crease_step_fraction * t)
-    for hc in landing:
-        if h - dh < hc < h - 1e-12:
-            dh = h - hc
-    return dh
+    return land_on(h, dh, landing, s.dh_min_mm)
 
 
 def _step_row(

@@ -51,6 +51,7 @@ from grasprom.fe.model2d import (
     SolverSettings,
     check_friction,
 )
+from grasprom.fe.stepping import land_on
 
 ENDS = ("free", "seed")
 CONTACTS = ("stick", "frictionless", "coulomb")
@@ -975,10 +976,7 @@ def _limit_step(spec: CaseSpec3D, h, dh, h_end, landing) -> float:
     dh = min(dh, s.dh_max_mm, h - h_end)
     if h > t:  # resolve the walls meeting: approach h = t geometrically
         dh = min(dh, max(0.01 * t, s.approach_fraction * (h - t)))
-    for hc in landing:
-        if h - dh < hc < h - 1e-12:
-            dh = h - hc
-    return dh
+    return land_on(h, dh, landing, s.dh_min_mm)
 
 
 _STEP_ERRORS = (_NewtonFailure, RuntimeError, ValueError, FloatingPointError)
