@@ -13,7 +13,7 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py mesh          # mesh convergence at fixed gaps
     python benchmarks/bench_fe3d.py meshband      # crease band and wall contact vs a fine mesh
     python benchmarks/bench_fe3d.py meshtube      # five cross-sections on the 240 mm tube (~1 h)
-    python benchmarks/bench_fe3d.py layers        # four and five layers through the wall (~1.5 h)
+    python benchmarks/bench_fe3d.py layers        # four and five layers through the wall (~2 h)
     python benchmarks/bench_fe3d.py planestrain   # plane-strain 3D vs the 2D model, full stroke
     python benchmarks/bench_fe3d.py element       # crease band in plane strain: beta, cross-section
     python benchmarks/bench_fe3d.py shell         # small-deflection stiffness vs shell theory
@@ -385,20 +385,23 @@ def bench_meshtube(meshes=TUBE_MESHES, gaps=TUBE_GAPS, tube_length: float | None
 #: the compaction rise, for t = 1.4 mm
 LAYER_GAPS = (10.0, 6.0, 5.0, 4.5, 4.0, 3.5, 3.0, 2.9, 2.8, 2.7, 2.6, 2.5)
 #: cross-sections with four and five layers through the wall (graded 8:1 toward the side
-#: fold), the reference first, and the default's for comparison
+#: fold), the reference first, two axial refinements and the default's for comparison
 LAYER_MESHES = {
     "4 x 48 (reference)": {"n_layers": 4, "n_circ": 48, "grading": 8.0},
     "4 x 24": {"n_layers": 4, "n_circ": 24, "grading": 8.0},
     "4 x 36": {"n_layers": 4, "n_circ": 36, "grading": 8.0},
     "4 x 64": {"n_layers": 4, "n_circ": 64, "grading": 8.0},
     "5 x 36": {"n_layers": 5, "n_circ": 36, "grading": 8.0},
+    "4 x 36, 6 axial": {"n_layers": 4, "n_circ": 36, "grading": 8.0, "n_jaw": 6},
+    "4 x 36, 8 axial": {"n_layers": 4, "n_circ": 36, "grading": 8.0, "n_jaw": 8},
     "default 2 x 12 graded 2:1": {},
 }  # fmt: skip
 
 
 def bench_layers(meshes=LAYER_MESHES, gaps=LAYER_GAPS, tube_length: float = 60.0) -> dict:
     """Crease band with four and five layers through the wall (mr, t = 1.4, stick, 60 mm tube,
-    4 axial divisions over the jaw; about 1.5 h): force at fixed gaps against 4 x 48."""
+    4 axial divisions over the jaw unless stated; about 2 h): force at fixed gaps against
+    4 x 48."""
     out = {}
     for label, mk in meshes.items():
         spec = CaseSpec3D("mr", T, tube_length_mm=tube_length)
