@@ -362,12 +362,12 @@ TUBE_MESHES = {
 TUBE_GAPS = (20.0, 10.0, 5.6, 4.9, 4.2, 3.5, 3.2, 3.0, 2.9, 2.7, 2.6)
 
 
-def bench_meshtube(meshes=TUBE_MESHES, gaps=TUBE_GAPS, tube_length: float | None = None) -> dict:
-    """Cross-sections on the default 240 mm tube (mr, t = 1.4, stick; about an hour)."""
+def _compare_meshes(base: CaseSpec3D, meshes: dict, gaps) -> dict:
+    """Run ``base`` with each mesh change of ``meshes`` (the reference first), landing on
+    ``gaps``; print the forces (N) and each mesh's ratio to the reference - 1."""
     out = {}
     for label, mk in meshes.items():
-        spec = _base() if tube_length is None else _base(tube_length_mm=tube_length)
-        spec = _with_gaps(replace(spec, mesh=replace(spec.mesh, **mk)), gaps)
+        spec = _with_gaps(replace(base, mesh=replace(base.mesh, **mk)), gaps)
         r = _run(spec, label)
         out[label] = {"force_N": _force_at(r.table, gaps), "dofs": r.info["dofs"]}
         out[label] |= {"newton": r.info["newton_iterations"], "wall_s": r.info["wall_time_s"]}
@@ -379,6 +379,12 @@ def bench_meshtube(meshes=TUBE_MESHES, gaps=TUBE_GAPS, tube_length: float | None
         v["rel_to_reference"] = {g: v["force_N"][g] / ref[g] - 1 for g in gaps}
         _print_row(f"{label[:20]} / ref - 1", v["rel_to_reference"], "{:+9.3f}")
     return out
+
+
+def bench_meshtube(meshes=TUBE_MESHES, gaps=TUBE_GAPS, tube_length: float | None = None) -> dict:
+    """Cross-sections on the default 240 mm tube (mr, t = 1.4, stick; about an hour)."""
+    base = _base() if tube_length is None else _base(tube_length_mm=tube_length)
+    return _compare_meshes(base, meshes, gaps)
 
 
 #: gaps of the through-the-wall study: bending, the crease band (2t..4t), the walls' knee and
@@ -402,21 +408,8 @@ def bench_layers(meshes=LAYER_MESHES, gaps=LAYER_GAPS, tube_length: float = 60.0
     """Crease band with four and five layers through the wall (mr, t = 1.4, stick, 60 mm tube,
     4 axial divisions over the jaw unless stated; about 2 h): force at fixed gaps against
     4 x 48."""
-    out = {}
-    for label, mk in meshes.items():
-        spec = CaseSpec3D("mr", T, tube_length_mm=tube_length)
-        spec = replace(spec, mesh=replace(spec.mesh, n_free=3, **mk))
-        r = _run(_with_gaps(spec, gaps), label)
-        out[label] = {"force_N": _force_at(r.table, gaps), "dofs": r.info["dofs"]}
-        out[label] |= {"newton": r.info["newton_iterations"], "wall_s": r.info["wall_time_s"]}
-    ref = next(iter(out.values()))["force_N"]
-    _header(gaps)
-    for label, v in out.items():
-        _print_row(label[:28], v["force_N"], "{:9.3f}")
-    for label, v in out.items():
-        v["rel_to_reference"] = {g: v["force_N"][g] / ref[g] - 1 for g in gaps}
-        _print_row(f"{label[:20]} / ref - 1", v["rel_to_reference"], "{:+9.3f}")
-    return out
+    base = CaseSpec3D("mr", T, tube_length_mm=tube_length)
+    return _compare_meshes(replace(base, mesh=replace(base.mesh, n_free=3)), meshes, gaps)
 
 
 #: tube length (mm) of the plane-strain slices; their jaw is 2 mm longer (flat over the tube)
