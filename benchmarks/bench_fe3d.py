@@ -13,7 +13,7 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py mesh          # mesh convergence at fixed gaps
     python benchmarks/bench_fe3d.py meshband      # crease band and wall contact vs a fine mesh
     python benchmarks/bench_fe3d.py meshtube      # five cross-sections on the 240 mm tube (~1 h)
-    python benchmarks/bench_fe3d.py layers        # four and five layers through the wall (~2 h)
+    python benchmarks/bench_fe3d.py layers        # four and five layers through the wall (~3 h)
     python benchmarks/bench_fe3d.py planestrain   # plane-strain 3D vs the 2D model, full stroke
     python benchmarks/bench_fe3d.py element       # crease band in plane strain: beta, cross-section
     python benchmarks/bench_fe3d.py shell         # small-deflection stiffness vs shell theory
@@ -362,15 +362,17 @@ TUBE_MESHES = {
 TUBE_GAPS = (20.0, 10.0, 5.6, 4.9, 4.2, 3.5, 3.2, 3.0, 2.9, 2.7, 2.6)
 
 
-def _compare_meshes(base: CaseSpec3D, meshes: dict, gaps) -> dict:
+def _compare_meshes(base: CaseSpec3D, meshes: dict, gaps, forces=()) -> dict:
     """Run ``base`` with each mesh change of ``meshes`` (the reference first), landing on
-    ``gaps``; print the forces (N) and each mesh's ratio to the reference - 1."""
+    ``gaps``; print the forces (N) and each mesh's ratio to the reference - 1, and the gaps (mm)
+    at which each mesh reaches ``forces`` (N)."""
     out = {}
     for label, mk in meshes.items():
         spec = _with_gaps(replace(base, mesh=replace(base.mesh, **mk)), gaps)
         r = _run(spec, label)
         out[label] = {"force_N": _force_at(r.table, gaps), "dofs": r.info["dofs"]}
         out[label] |= {"newton": r.info["newton_iterations"], "wall_s": r.info["wall_time_s"]}
+        out[label]["gap_at_force_mm"] = _gap_at_force(r.table, forces) if forces else {}
     ref = next(iter(out.values()))["force_N"]
     _header(gaps)
     for label, v in out.items():
@@ -378,6 +380,10 @@ def _compare_meshes(base: CaseSpec3D, meshes: dict, gaps) -> dict:
     for label, v in out.items():
         v["rel_to_reference"] = {g: v["force_N"][g] / ref[g] - 1 for g in gaps}
         _print_row(f"{label[:20]} / ref - 1", v["rel_to_reference"], "{:+9.3f}")
+    if forces:
+        print(f"  {'gap (mm) at force (N)':<28}" + " ".join(f"{f:9.1f}" for f in forces))
+        for label, v in out.items():
+            _print_row(label[:28], v["gap_at_force_mm"], "{:9.3f}")
     return out
 
 
@@ -390,8 +396,10 @@ def bench_meshtube(meshes=TUBE_MESHES, gaps=TUBE_GAPS, tube_length: float | None
 #: gaps of the through-the-wall study: bending, the crease band (2t..4t), the walls' knee and
 #: the compaction rise, for t = 1.4 mm
 LAYER_GAPS = (10.0, 6.0, 5.0, 4.5, 4.0, 3.5, 3.0, 2.9, 2.8, 2.7, 2.6, 2.5)
+#: forces (N) at which the through-the-wall study compares the gaps (the steep walls meeting)
+LAYER_FORCES = (3.5, 5.0, 10.0, 20.0, 50.0)
 #: cross-sections with four and five layers through the wall (graded 8:1 toward the side
-#: fold), the reference first, two axial refinements and the default's for comparison
+#: fold), the reference first, three axial refinements and the default's for comparison
 LAYER_MESHES = {
     "4 x 48 (reference)": {"n_layers": 4, "n_circ": 48, "grading": 8.0},
     "4 x 24": {"n_layers": 4, "n_circ": 24, "grading": 8.0},
@@ -400,16 +408,20 @@ LAYER_MESHES = {
     "5 x 36": {"n_layers": 5, "n_circ": 36, "grading": 8.0},
     "4 x 36, 6 axial": {"n_layers": 4, "n_circ": 36, "grading": 8.0, "n_jaw": 6},
     "4 x 36, 8 axial": {"n_layers": 4, "n_circ": 36, "grading": 8.0, "n_jaw": 8},
+    "4 x 36, 12 axial": {"n_layers": 4, "n_circ": 36, "grading": 8.0, "n_jaw": 12},
     "default 2 x 12 graded 2:1": {},
 }  # fmt: skip
 
 
-def bench_layers(meshes=LAYER_MESHES, gaps=LAYER_GAPS, tube_length: float = 60.0) -> dict:
+def bench_layers(
+    meshes=LAYER_MESHES, gaps=LAYER_GAPS, tube_length: float = 60.0, forces=LAYER_FORCES
+) -> dict:
     """Crease band with four and five layers through the wall (mr, t = 1.4, stick, 60 mm tube,
-    4 axial divisions over the jaw unless stated; about 2 h): force at fixed gaps against
-    4 x 48."""
+    4 axial divisions over the jaw unless stated; about 3 h): force at fixed gaps against
+    4 x 48, and the gap at equal force."""
     base = CaseSpec3D("mr", T, tube_length_mm=tube_length)
-    return _compare_meshes(replace(base, mesh=replace(base.mesh, n_free=3)), meshes, gaps)
+    base = replace(base, mesh=replace(base.mesh, n_free=3))
+    return _compare_meshes(base, meshes, gaps, forces)
 
 
 #: tube length (mm) of the plane-strain slices; their jaw is 2 mm longer (flat over the tube)
