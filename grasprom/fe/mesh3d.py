@@ -91,10 +91,12 @@ def axial_nodes(half_length: float, z_fine: float, n_jaw: int, n_free: int) -> n
     z1 = np.linspace(0.0, z_fine, n_jaw + 1)
     dz0 = z_fine / n_jaw
     rest = half_length - z_fine
-    if dz0 * n_free >= rest:
+    if dz0 * n_free >= rest or n_free == 1:
         z2 = np.linspace(z_fine, half_length, n_free + 1)
-    else:
-        q = so.brentq(lambda q: dz0 * (q**n_free - 1.0) / (q - 1.0) - rest, 1.0 + 1e-9, 10.0)
+    else:  # growth q > 1 with dz0 (1 + q + ... + q^(n_free - 1)) = rest; at q = rest/dz0 the
+        # sum exceeds rest (n_free >= 2), so the root is bracketed for any tube length
+        q_hi = max(10.0, rest / dz0)
+        q = so.brentq(lambda q: dz0 * (q**n_free - 1.0) / (q - 1.0) - rest, 1.0 + 1e-9, q_hi)
         z2 = z_fine + np.concatenate([[0.0], np.cumsum(dz0 * q ** np.arange(n_free))])
         z2[-1] = half_length
     return np.concatenate([z1, z2[1:]])

@@ -52,3 +52,19 @@ def test_radial_grading_thins_the_inner_layers():
     h = np.diff(r)
     assert r[0] == pytest.approx(13.6) and r[-1] == pytest.approx(15.0)
     assert h[-1] / h[0] == pytest.approx(3.0) and h[1] / h[0] == pytest.approx(np.sqrt(3.0))
+
+
+@pytest.mark.parametrize(("n_free", "half"), [(1, 30.0), (2, 30.0), (3, 120.0), (2, 400.0)])
+def test_axial_nodes_grade_any_free_length_with_few_elements(n_free, half):
+    """Few graded elements over a long free tube (the growth factor above 10 once failed to
+    bracket: n_free = 2 on a 60 mm tube): uniform over the jaw zone, then growing element
+    lengths that end exactly at the tube's end."""
+    z = axial_nodes(half, 7.0, 4, n_free)
+    assert z.size == 4 + n_free + 1
+    np.testing.assert_allclose(z[:5], np.linspace(0.0, 7.0, 5), atol=1e-12)
+    assert z[-1] == pytest.approx(half, abs=1e-9)
+    dz = np.diff(z[4:])
+    assert np.all(dz > 0) and np.all(np.diff(dz) >= -1e-12)
+    if n_free > 1:  # geometric growth from the jaw zone's element length
+        assert dz[0] == pytest.approx(7.0 / 4, rel=1e-9)
+        np.testing.assert_allclose(dz[1:] / dz[:-1], dz[1] / dz[0], rtol=1e-9)
