@@ -19,6 +19,7 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py shell         # small-deflection stiffness vs shell theory
     python benchmarks/bench_fe3d.py assembly      # tangent assembly vs a plain einsum, default case
     python benchmarks/bench_fe3d.py ccx           # against CalculiX, frictionless, 3 meshes (~1 h)
+    python benchmarks/bench_fe3d.py wallsmeet     # 4 x 36, 240 mm: contact predicted or not (~1.5h)
 
 Forces in N, gaps in mm.  t = 1.4 mm, Mooney-Rivlin, unless stated.  Timings are wall-clock on
 whatever machine runs this (noisy when shared).
@@ -33,6 +34,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from grasprom.fe import model3d
 from grasprom.fe.mesh3d import MeshSpec3D
 from grasprom.fe.model2d import CaseSpec, MeshSpec, SolverSettings, run_case
 from grasprom.fe.model3d import CaseSpec3D, run_case_3d, semi_membrane_jaw_stiffness
@@ -628,6 +630,54 @@ def bench_ccx(meshes=CCX_MESHES, gaps=TUBE_GAPS, workdir: str | None = None) -> 
     return out
 
 
+class _OutOfTime(Exception):
+    pass
+
+
+def bench_wallsmeet(switch_gap: float = 3.5, budget_factor: float = 2.0) -> dict:
+    """The walls meeting on a converged cross-section (4 x 36 graded 8:1, the default 240 mm
+    tube, mr, t = 1.4, stick): with :data:`grasprom.fe.model3d.PREDICT_CONTACT` switched on
+    once the gap is below ``switch_gap`` (mm; it is off before, through the crease) against the
+    case as it is, given ``budget_factor`` times the first run's time after the switch; prints
+    the time to the switch and after it, and the gap (mm) each run reached (~1.5 h)."""
+    spec = _with_gaps(replace(_base(), mesh=replace(_base().mesh, n_layers=4, n_circ=36,
+                                                     grading=8.0)), LAYER_GAPS)  # fmt: skip
+    out = {}
+    for label, predict in (("predicted contact", True), ("node by node (as shipped)", False)):
+        t0, state = time.perf_counter(), {"gap": np.inf, "force": np.nan, "t_switch": None}
+        budget = budget_factor * out["predicted contact"]["after_s"] if out else np.inf
+
+        def progress(gap, force, t0=t0, state=state, budget=budget, predict=predict):
+            state |= {"gap": gap, "force": force}
+            if state["t_switch"] is None and gap < switch_gap:
+                state["t_switch"] = time.perf_counter() - t0
+                model3d.PREDICT_CONTACT = predict
+            if (
+                state["t_switch"] is not None
+                and time.perf_counter() - t0 - state["t_switch"] > budget
+            ):
+                raise _OutOfTime
+
+        try:
+            r = run_case_3d(spec, progress=progress)
+            done = f"{r.status}, {r.info['newton_iterations']} Newton iterations"
+            done += f", {r.info['failures']} failed steps"
+        except _OutOfTime:
+            done = "stopped: out of time"
+        finally:
+            model3d.PREDICT_CONTACT = False
+        wall = time.perf_counter() - t0
+        t_sw = state["t_switch"] if state["t_switch"] is not None else wall
+        out[label] = {"to_switch_s": t_sw, "after_s": wall - t_sw, "gap_mm": state["gap"]}
+        out[label] |= {"force_N": state["force"], "end": done}
+        print(
+            f"  {label:<26} to gap {switch_gap} mm {t_sw:6.0f} s, after {wall - t_sw:6.0f} s:"
+            f" gap {state['gap']:.4f} mm, F {state['force']:.3f} N ({done})",
+            flush=True,
+        )
+    return out
+
+
 SECTIONS = {
     "shell": bench_shell,
     "default": bench_default,
@@ -645,6 +695,7 @@ SECTIONS = {
     "meshtube": bench_meshtube,
     "layers": bench_layers,
     "ccx": bench_ccx,
+    "wallsmeet": bench_wallsmeet,
 }
 
 

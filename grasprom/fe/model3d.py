@@ -691,6 +691,16 @@ def _feasible_alpha(st: _Setup, c: _Contact, u, du, cons, h) -> float:
     return hi
 
 
+PREDICT_CONTACT = False
+"""Experimental, off: when a Newton step is cut at the first touch, also add the nodes its
+uncut step would push into the jaw or the floor (:func:`_update_active`'s ``probe``).  Where
+the inner walls meet on a fine mesh it ends the node-by-node crawl of the active set (mr,
+t = 1.4 mm, 4 x 36, 240 mm tube, switched on at gap 3.42 mm: to gap 2.70 mm in 907 s; off: at
+3.13 mm after 1815 s).  On from the first step it takes another path through the crease (a
+snap: the uncut step is wild there) and, on the 240 mm tube, stalled in it; so it stays off
+until it can be confined to the walls meeting (``python benchmarks/bench_fe3d.py
+wallsmeet``)."""
+
 #: relative residual to which Newton solves while the active set may still change; once it
 #: has settled, Newton tightens to ``SolverSettings.rtol`` and the set is checked again
 ACTIVE_SET_RTOL = 1e-4
@@ -738,12 +748,13 @@ def _newton(st: _Setup, u, cons, h, c: _Contact, rtol: float | None = None, fric
         if ut is None or not np.isfinite(energy(st.disc, st.material, ut)):
             ut, alpha = _line_search(st, u, du, r @ dv, rnorm, cons, h, amax, fric)
             event = event and alpha == amax
+        probe = _enforce(st, u + du, fixed, values, fr, h) if event and PREDICT_CONTACT else None
         u = ut
         f, K = _assemble_x(st, u, fric)
         if f is None:
             raise _NewtonFailure("inverted element")
         if event:
-            return u, internal(f, u), K, it, True
+            return u, internal(f, u), K, it, (True if probe is None else probe)
     raise _NewtonFailure("Newton did not converge")
 
 
@@ -777,10 +788,13 @@ def _jaw_reactions(st: _Setup, c: _Contact, u, f, h) -> np.ndarray:
     return f[3 * on + 1] * ny + f[3 * on + 2] * nz
 
 
-def _update_active(st: _Setup, c: _Contact, u, f, h, add_only: bool = False):
+def _update_active(st: _Setup, c: _Contact, u, f, h, add_only: bool = False, probe=None):
     """New contact state from a converged solution (release tensile, add penetrating).
 
     ``add_only``: the state is not in equilibrium (a cut Newton step); only add nodes.
+    ``probe``: displacements (mm) of the uncut Newton step of such a state; nodes it would push
+    into the jaw or the floor are added too (touching at the probe's projection), so a wall
+    closing onto the floor over a wide strip enters the set in one pass, not node by node.
     """
     d = st.disc
     on, inn = d.outer_nodes, d.inner_nodes
@@ -793,8 +807,16 @@ def _update_active(st: _Setup, c: _Contact, u, f, h, add_only: bool = False):
     new.jaw_active = np.where(c.jaw_active, keep, gap < -tol)
     added = new.jaw_active & ~c.jaw_active
     new.anchor[added] = np.column_stack([xyz[on[added], 0], yp[added] - h, zp[added]])
+    if probe is not None:
+        xp = d.X + probe.reshape(-1, 3)
+        gp, ypp, zpp, _, _ = st.jaw.project(xp[on, 1], xp[on, 2], h)
+        more = ~new.jaw_active & (gp < -tol)
+        new.jaw_active |= more
+        new.anchor[more] = np.column_stack([xp[on[more], 0], ypp[more] - h, zpp[more]])
     keep_f = np.ones_like(c.floor_active) if add_only else f[3 * inn + 1] >= 0.0
     new.floor_active = np.where(c.floor_active, keep_f, xyz[inn, 1] < -tol)
+    if probe is not None:
+        new.floor_active |= xp[inn, 1] < -tol
     same = np.array_equal(new.jaw_active, c.jaw_active)
     return new, same and np.array_equal(new.floor_active, c.floor_active)
 
@@ -846,10 +868,12 @@ def _solve_step(st: _Setup, u, K_old, c: _Contact, h: float, prox: ProximalTerm 
         fric = _Potentials.of(CoulombFriction.of(st, c, h), prox)
         cons = (fixed, values, fr)
         u, f, K, it, event = _newton(st, u, cons, h, c, None if exact else loose, fric, last)
+        probe = None if isinstance(event, bool) else event
+        event = event is not False
         last = (u, f, K) if fric is None else None
         iters += it
         K_old = K
-        new, settled = _update_active(st, c, u, f, h, add_only=event)
+        new, settled = _update_active(st, c, u, f, h, add_only=event, probe=probe)
         if coulomb and not event:
             lam = _normal_forces(st, c, u, f, h)
             scale = max(float(lam.max(initial=0.0)), 1e-12)

@@ -491,6 +491,46 @@ def test_proximal_relaxation_lands_on_the_newton_equilibrium():
     assert jaw_force(relaxed) == pytest.approx(jaw_force(newton), rel=1e-7)
 
 
+def test_a_cut_newton_step_adds_the_nodes_its_full_step_would_push_through():
+    """When a Newton step is cut at the first touch, the nodes the uncut step (the probe) would
+    push into the floor or the jaw join the active set at once: exactly those, the jaw's at the
+    probe's projection on the jaw.  Without it a wall closing onto the floor over a wide strip
+    entered node by node, one active-set pass each (the 4 x 36 case on the 240 mm tube crawled
+    at gap 3.2 mm; ``python benchmarks/bench_fe3d.py wallsmeet``)."""
+    from grasprom.fe import model3d
+
+    spec = CaseSpec3D(
+        "mr", 1.4, tube_length_mm=30.0, mesh=MeshSpec3D(n_layers=1, n_circ=8, n_jaw=3, n_free=3)
+    )
+    st = model3d._setup(spec, "auto")
+    d, R = st.disc, 15.0
+    c = model3d._initial_contact(st, R)
+    u = np.zeros(d.ndof)
+    f = np.zeros(d.ndof)
+    probe = u.copy()
+    inn, on = d.inner_nodes, d.outer_nodes
+    sink = (d.X[inn, 0] < 5.0) & (d.X[inn, 2] < 3.0)  # a strip of the inner wall
+    probe[3 * inn[sink] + 1] = -d.X[inn[sink], 1] - 0.01  # 10 um through the floor
+    lift = np.flatnonzero(~c.jaw_active & (d.X[on, 2] < 2.0))[:3]  # three free outer nodes
+    probe[3 * on[lift] + 1] = R + 0.01 - d.X[on[lift], 1]  # 10 um into the flat jaw at h = R
+
+    plain, _ = model3d._update_active(st, c, u, f, R, add_only=True)
+    assert np.array_equal(plain.floor_active, c.floor_active)
+    assert np.array_equal(plain.jaw_active, c.jaw_active)
+
+    new, settled = model3d._update_active(st, c, u, f, R, add_only=True, probe=probe)
+    assert not settled
+    assert np.array_equal(new.floor_active, c.floor_active | sink)
+    assert sink.sum() >= 3
+    expected = c.jaw_active.copy()
+    expected[lift] = True
+    assert np.array_equal(new.jaw_active, expected)
+    # stuck where the probe meets the flat jaw: its x and z, on the face (y - h = 0)
+    np.testing.assert_allclose(new.anchor[lift, 0], d.X[on[lift], 0], atol=1e-12)
+    np.testing.assert_allclose(new.anchor[lift, 1], 0.0, atol=1e-12)
+    np.testing.assert_allclose(new.anchor[lift, 2], d.X[on[lift], 2], atol=1e-12)
+
+
 @pytest.mark.slow
 def test_3d_crease_is_placed_where_the_work_balances_the_strain_energy():
     """Maxwell's rule in 3D, checked by the work-energy balance (stick: the jaw moves along its
