@@ -640,8 +640,8 @@ def bench_wallsmeet(switch_gap: float = 3.5, budget_factor: float = 2.0) -> dict
     once the gap is below ``switch_gap`` (mm; it is off before, through the crease) against the
     case as it is, given ``budget_factor`` times the first run's time after the switch; prints
     the time to the switch and after it, and the gap (mm) each run reached (~1.5 h)."""
-    spec = _with_gaps(replace(_base(), mesh=replace(_base().mesh, n_layers=4, n_circ=36,
-                                                     grading=8.0)), LAYER_GAPS)  # fmt: skip
+    base = _base()
+    spec = _with_gaps(replace(base, mesh=replace(base.mesh, **LAYER_MESHES["4 x 36"])), LAYER_GAPS)
     out = {}
     for label, predict in (("predicted contact", True), ("node by node (as shipped)", False)):
         t0, state = time.perf_counter(), {"gap": np.inf, "force": np.nan, "t_switch": None}

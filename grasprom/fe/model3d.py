@@ -707,7 +707,7 @@ ACTIVE_SET_RTOL = 1e-4
 
 
 def _newton(st: _Setup, u, cons, h, c: _Contact, rtol: float | None = None, fric=None, start=None):
-    """Newton-Raphson on the free dofs; returns ``(u, f, K, iterations, contact_event)``.
+    """Newton-Raphson on the free dofs; returns ``(u, f, K, iterations, contact_event, probe)``.
 
     Converges to ``rtol`` (default ``SolverSettings.rtol``) times the force scale (N).  A step
     that would push inactive nodes deeper than ``0.02 t`` into the jaw or the floor is cut at
@@ -716,6 +716,8 @@ def _newton(st: _Setup, u, cons, h, c: _Contact, rtol: float | None = None, fric
     without it (at a node in contact: the jaw's reaction), ``K`` the tangent with it.
     ``start = (u0, f0, K0)``: an assembly without extra potential at ``u0``, reused if the
     constrained start is ``u0`` (the next active-set pass from the same displacements).
+    ``probe``: after a contact event with :data:`PREDICT_CONTACT` on, the displacements of the
+    uncut step (for :func:`_update_active`); None otherwise.
     """
     fixed, values, fr = cons
     u = _enforce(st, u, fixed, values, fr, h)
@@ -735,7 +737,7 @@ def _newton(st: _Setup, u, cons, h, c: _Contact, rtol: float | None = None, fric
         r = fr_.residual(f)
         rnorm = np.linalg.norm(r)
         if rnorm <= tol:
-            return u, internal(f, u), K, it - 1, False
+            return u, internal(f, u), K, it - 1, False, None
         Kr = fr_.tangent(K, f, st.jaw.r)
         dv = descent_direction(st.solver, _constrained(st, Kr, fr_.fixed, fr_.Q is not None), r)
         if dv is None:
@@ -754,7 +756,7 @@ def _newton(st: _Setup, u, cons, h, c: _Contact, rtol: float | None = None, fric
         if f is None:
             raise _NewtonFailure("inverted element")
         if event:
-            return u, internal(f, u), K, it, (True if probe is None else probe)
+            return u, internal(f, u), K, it, True, probe
     raise _NewtonFailure("Newton did not converge")
 
 
@@ -788,6 +790,14 @@ def _jaw_reactions(st: _Setup, c: _Contact, u, f, h) -> np.ndarray:
     return f[3 * on + 1] * ny + f[3 * on + 2] * nz
 
 
+def _jaw_touch(st: _Setup, xyz, h, tol):
+    """Outer nodes at positions ``xyz`` (mm) that penetrate the jaw at height ``h`` by more than
+    ``tol`` (mm), and each outer node's stick anchor there (x, y - h, z of its jaw projection)."""
+    on = st.disc.outer_nodes
+    gap, yp, zp, _, _ = st.jaw.project(xyz[on, 1], xyz[on, 2], h)
+    return gap < -tol, np.column_stack([xyz[on, 0], yp - h, zp])
+
+
 def _update_active(st: _Setup, c: _Contact, u, f, h, add_only: bool = False, probe=None):
     """New contact state from a converged solution (release tensile, add penetrating).
 
@@ -797,26 +807,21 @@ def _update_active(st: _Setup, c: _Contact, u, f, h, add_only: bool = False, pro
     closing onto the floor over a wide strip enters the set in one pass, not node by node.
     """
     d = st.disc
-    on, inn = d.outer_nodes, d.inner_nodes
+    inn = d.inner_nodes
     lam = _jaw_reactions(st, c, u, f, h)
-    xyz = d.X + u.reshape(-1, 3)
-    gap, yp, zp, _, _ = st.jaw.project(xyz[on, 1], xyz[on, 2], h)
     tol = 1e-9 * max(1.0, h)
     new = c.copy()
     keep = np.ones_like(c.jaw_active) if add_only else lam >= 0.0
-    new.jaw_active = np.where(c.jaw_active, keep, gap < -tol)
-    added = new.jaw_active & ~c.jaw_active
-    new.anchor[added] = np.column_stack([xyz[on[added], 0], yp[added] - h, zp[added]])
-    if probe is not None:
-        xp = d.X + probe.reshape(-1, 3)
-        gp, ypp, zpp, _, _ = st.jaw.project(xp[on, 1], xp[on, 2], h)
-        more = ~new.jaw_active & (gp < -tol)
-        new.jaw_active |= more
-        new.anchor[more] = np.column_stack([xp[on[more], 0], ypp[more] - h, zpp[more]])
     keep_f = np.ones_like(c.floor_active) if add_only else f[3 * inn + 1] >= 0.0
-    new.floor_active = np.where(c.floor_active, keep_f, xyz[inn, 1] < -tol)
-    if probe is not None:
-        new.floor_active |= xp[inn, 1] < -tol
+    new.jaw_active &= keep
+    new.floor_active &= keep_f
+    for v in (u,) if probe is None else (u, probe):  # the probe adds what u did not
+        xyz = d.X + v.reshape(-1, 3)
+        jaw_hit, anchor = _jaw_touch(st, xyz, h, tol)
+        added = jaw_hit & ~new.jaw_active & ~c.jaw_active
+        new.jaw_active |= added
+        new.anchor[added] = anchor[added]
+        new.floor_active |= ~c.floor_active & (xyz[inn, 1] < -tol)
     same = np.array_equal(new.jaw_active, c.jaw_active)
     return new, same and np.array_equal(new.floor_active, c.floor_active)
 
@@ -867,9 +872,7 @@ def _solve_step(st: _Setup, u, K_old, c: _Contact, h: float, prox: ProximalTerm 
             u = _predict(st, u, K_old, fixed, jump)
         fric = _Potentials.of(CoulombFriction.of(st, c, h), prox)
         cons = (fixed, values, fr)
-        u, f, K, it, event = _newton(st, u, cons, h, c, None if exact else loose, fric, last)
-        probe = None if isinstance(event, bool) else event
-        event = event is not False
+        u, f, K, it, event, probe = _newton(st, u, cons, h, c, None if exact else loose, fric, last)
         last = (u, f, K) if fric is None else None
         iters += it
         K_old = K
@@ -1247,7 +1250,7 @@ def solve_dirichlet(
     solve = make_solver(solver)
     st = _Setup(disc, material, jaw, False, fixed, settings, material.mu * t * t, solve, t)
     cons = (fixed, np.where(fixed, values, 0.0), np.zeros(0, dtype=np.int64))
-    u, f, _, _, _ = _newton(st, cons[1].copy(), cons, 0.0, _no_contact(disc))
+    u, f, *_ = _newton(st, cons[1].copy(), cons, 0.0, _no_contact(disc))
     return u, f
 
 
