@@ -34,7 +34,6 @@ from dataclasses import replace
 
 import numpy as np
 
-from grasprom.fe import model3d
 from grasprom.fe.mesh3d import MeshSpec3D
 from grasprom.fe.model2d import CaseSpec, MeshSpec, SolverSettings, run_case
 from grasprom.fe.model3d import CaseSpec3D, run_case_3d, semi_membrane_jaw_stiffness
@@ -643,22 +642,22 @@ class _OutOfTime(Exception):
 
 def bench_wallsmeet(switch_gap: float = 3.5, budget_factor: float = 2.0) -> dict:
     """The walls meeting on a converged cross-section (4 x 36 graded 8:1, the default 240 mm
-    tube, mr, t = 1.4, stick): with :data:`grasprom.fe.model3d.PREDICT_CONTACT` switched on
-    once the gap is below ``switch_gap`` (mm; it is off before, through the crease) against the
-    case as it is, given ``budget_factor`` times the first run's time after the switch; prints
-    the time to the switch and after it, and the gap (mm) each run reached (~1.5 h)."""
+    tube, mr, t = 1.4, stick): with predicted contact below gap ``switch_gap`` (mm;
+    ``SolverSettings.predict_contact_below_mm``, off before, through the crease) against the
+    case as shipped (off), given ``budget_factor`` times the first run's time after the switch;
+    prints the time to the switch and after it, and the gap (mm) each run reached (~1.5 h)."""
     base = _base()
     spec = _with_gaps(replace(base, mesh=replace(base.mesh, **LAYER_MESHES["4 x 36"])), LAYER_GAPS)
     out = {}
-    for label, predict in (("predicted contact", True), ("node by node (as shipped)", False)):
+    for label, below in (("predicted contact", switch_gap), ("node by node (as shipped)", 0.0)):
+        run = replace(spec, solver=replace(spec.solver, predict_contact_below_mm=below))
         t0, state = time.perf_counter(), {"gap": np.inf, "force": np.nan, "t_switch": None}
         budget = budget_factor * out["predicted contact"]["after_s"] if out else np.inf
 
-        def progress(gap, force, t0=t0, state=state, budget=budget, predict=predict):
+        def progress(gap, force, t0=t0, state=state, budget=budget):
             state |= {"gap": gap, "force": force}
             if state["t_switch"] is None and gap < switch_gap:
                 state["t_switch"] = time.perf_counter() - t0
-                model3d.PREDICT_CONTACT = predict
             if (
                 state["t_switch"] is not None
                 and time.perf_counter() - t0 - state["t_switch"] > budget
@@ -666,13 +665,11 @@ def bench_wallsmeet(switch_gap: float = 3.5, budget_factor: float = 2.0) -> dict
                 raise _OutOfTime
 
         try:
-            r = run_case_3d(spec, progress=progress)
+            r = run_case_3d(run, progress=progress)
             done = f"{r.status}, {r.info['newton_iterations']} Newton iterations"
             done += f", {r.info['failures']} failed steps"
         except _OutOfTime:
             done = "stopped: out of time"
-        finally:
-            model3d.PREDICT_CONTACT = False
         wall = time.perf_counter() - t0
         t_sw = state["t_switch"] if state["t_switch"] is not None else wall
         out[label] = {"to_switch_s": t_sw, "after_s": wall - t_sw, "gap_mm": state["gap"]}

@@ -239,6 +239,12 @@ class SolverSettings:
         strain energy than the smooth fold at the same jaw height (Maxwell's rule,
         :func:`_crease_onset`), not where the smooth fold loses stability: that point depends
         on the mesh (a finer fold tip holds the metastable smooth fold longer and snaps harder).
+    predict_contact_below_mm : float
+        3D only, experimental: below this jaw gap (mm) a Newton step cut at the first touch
+        also adds the nodes its uncut step would push into the jaw or the floor (predicted
+        contact, :func:`grasprom.fe.model3d._update_active`), so a flat wall closing onto the
+        floor enters the active set at once, not node by node.  0 (default) turns it off; on
+        through the crease band it changes the path of the crease (docs/fe-model.md).
     """
 
     dh_initial_mm: float = 0.05
@@ -255,6 +261,7 @@ class SolverSettings:
     max_relax: int = 200
     crease_step_fraction: float = 0.025
     maxwell_crease: bool = True
+    predict_contact_below_mm: float = 0.0
 
 
 @dataclass(frozen=True)

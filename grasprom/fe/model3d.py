@@ -718,15 +718,16 @@ def _feasible_alpha(st: _Setup, c: _Contact, u, du, cons, h) -> float:
     return hi
 
 
-PREDICT_CONTACT = False
-"""Experimental, off: when a Newton step is cut at the first touch, also add the nodes its
-uncut step would push into the jaw or the floor (:func:`_update_active`'s ``probe``).  Where
-the inner walls meet on a fine mesh it ends the node-by-node crawl of the active set (mr,
-t = 1.4 mm, 4 x 36, 240 mm tube, switched on at gap 3.42 mm: to gap 2.70 mm in 907 s; off: at
-3.13 mm after 1815 s).  On from the first step it takes another path through the crease (a
-snap: the uncut step is wild there) and, on the 240 mm tube, stalled in it; so it stays off
-until it can be confined to the walls meeting (``python benchmarks/bench_fe3d.py
-wallsmeet``)."""
+def _predicting(st: _Setup, h: float) -> bool:
+    """Predicted contact at jaw height ``h`` (mm): the gap ``2 h`` is below
+    ``SolverSettings.predict_contact_below_mm``.  Where the inner walls meet on a fine mesh it
+    ends the node-by-node crawl of the active set (mr, t = 1.4 mm, 4 x 36, 240 mm tube,
+    switched on at gap 3.42 mm: to gap 2.70 mm in 907 s; off: at 3.13 mm after 1815 s).  On
+    from the first step it takes another path through the crease (a snap: the uncut step is
+    wild there) and, on the 240 mm tube, stalled in it (``python benchmarks/bench_fe3d.py
+    wallsmeet``)."""
+    return 2.0 * h < st.settings.predict_contact_below_mm
+
 
 #: relative residual to which Newton solves while the active set may still change; once it
 #: has settled, Newton tightens to ``SolverSettings.rtol`` and the set is checked again
@@ -743,8 +744,8 @@ def _newton(st: _Setup, u, cons, h, c: _Contact, rtol: float | None = None, fric
     without it (at a node in contact: the jaw's reaction), ``K`` the tangent with it.
     ``start = (u0, f0, K0)``: an assembly without extra potential at ``u0``, reused if the
     constrained start is ``u0`` (the next active-set pass from the same displacements).
-    ``probe``: after a contact event with :data:`PREDICT_CONTACT` on, the displacements of the
-    uncut step (for :func:`_update_active`); None otherwise.
+    ``probe``: after a contact event with predicted contact on (:func:`_predicting`), the
+    displacements of the uncut step (for :func:`_update_active`); None otherwise.
     """
     fixed, values, fr = cons
     u = _enforce(st, u, fixed, values, fr, h)
@@ -777,7 +778,8 @@ def _newton(st: _Setup, u, cons, h, c: _Contact, rtol: float | None = None, fric
         if ut is None or not np.isfinite(energy(st.disc, st.material, ut)):
             ut, alpha = _line_search(st, u, du, r @ dv, rnorm, cons, h, amax, fric)
             event = event and alpha == amax
-        probe = _enforce(st, u + du, fixed, values, fr, h) if event and PREDICT_CONTACT else None
+        predict = event and _predicting(st, h)
+        probe = _enforce(st, u + du, fixed, values, fr, h) if predict else None
         u = ut
         f, K = _assemble_x(st, u, fric)
         if f is None:
@@ -1238,6 +1240,11 @@ def _validate_spec(spec: CaseSpec3D) -> None:
         ("closed_gap_mm", spec.closed_gap_mm, 0 < spec.closed_gap_mm < spec.diameter_mm),
         ("force_cap_N", spec.force_cap_N, spec.force_cap_N > 0),
         ("tube_length_mm", spec.tube_length_mm, spec.tube_length_mm > 0),
+        (
+            "solver.predict_contact_below_mm",
+            spec.solver.predict_contact_below_mm,
+            spec.solver.predict_contact_below_mm >= 0,
+        ),
     )
     for name, value, ok in checks:
         if not (np.isfinite(value) and ok):

@@ -631,3 +631,44 @@ def test_plane_strain_3d_follows_the_2d_model_through_the_crease_band():
     for g in gaps:
         if g not in (4.5, 2.85):
             assert f3[g] == pytest.approx(f2[g], rel=0.01 if g >= 6.0 else 0.03), g
+
+
+def test_predicted_contact_is_on_below_its_gap_only_and_keeps_the_equilibrium(monkeypatch):
+    """``SolverSettings.predict_contact_below_mm``: a cut Newton step hands its uncut step (the
+    probe) to the active-set update only while the jaw gap is below the setting (0: never),
+    and the run reaches the same equilibria (stick, jaw contact spreading over the tube, four
+    cut steps: forces at four gaps equal to 1e-4; a node joining from a probe sticks where the
+    probe meets the jaw, not where the cut step touched it).  A negative setting is refused."""
+    from grasprom.fe import model3d
+
+    gaps = (20.0, 16.0, 13.0, 10.5)  # interpolated in the rows
+    spec = CaseSpec3D(
+        "mr",
+        1.4,
+        tube_length_mm=30.0,
+        closed_gap_mm=10.0,
+        mesh=MeshSpec3D(n_layers=1, n_circ=8, n_jaw=3, n_free=3),
+    )
+    calls = []
+    update = model3d._update_active
+
+    def spy(st, c, u, f, h, add_only=False, probe=None):
+        calls.append((2.0 * h, add_only, probe is not None))
+        return update(st, c, u, f, h, add_only, probe)
+
+    monkeypatch.setattr(model3d, "_update_active", spy)
+    runs = {}
+    for below in (0.0, 15.0):  # cut steps near 16.8, 14.9, 11.6, 10.2 mm
+        calls.clear()
+        run = replace(spec, solver=replace(spec.solver, predict_contact_below_mm=below))
+        runs[below] = (run_case_3d(run), list(calls))
+    off, on = runs[0.0][1], runs[15.0][1]
+    assert any(cut for _, cut, _ in off) and not any(p for _, _, p in off)
+    assert all(p == (cut and gap < 15.0) for gap, cut, p in on)  # every cut step below 15 mm
+    assert any(cut and gap > 15.0 for gap, cut, _ in on) and any(p for _, _, p in on)
+    tables = [runs[b][0].table.iloc[::-1] for b in (0.0, 15.0)]
+    a, b = (np.interp(gaps, tb["gap_mm"], tb["force_N"]) for tb in tables)
+    np.testing.assert_allclose(b, a, rtol=1e-4)
+    assert a[-1] > 3 * a[0]  # the jaw contact spread: the force grew 3.6x
+    with pytest.raises(ValueError, match="predict_contact_below_mm"):
+        run_case_3d(replace(spec, solver=replace(spec.solver, predict_contact_below_mm=-1.0)))
