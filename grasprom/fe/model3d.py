@@ -1127,11 +1127,8 @@ def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=N
     spec : CaseSpec3D
         Geometry (mm), material, contact, limits, mesh and solver settings.
     progress : callable, optional
-        Called as ``progress(gap_mm, force_N)`` after each converged step of the forward
-        path.  Rows that the crease placement (:func:`_crease_onset`) later replaces are
-        reported as first computed, and the creased states it continues back are not
-        reported: in the crease band the returned table, not the progress log, holds the
-        forces.
+        Called as ``progress(gap_mm, force_N)`` after each converged forward step (rows the
+        crease placement later replaces included: the returned table holds the band).
     solver : str
         Sparse solver (:func:`grasprom.fe.linsolve.make_solver`): ``"auto"`` (MKL PARDISO if
         ``pypardiso`` is installed, else scipy SuperLU), ``"superlu"`` or ``"pardiso"``.  The
@@ -1139,8 +1136,7 @@ def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=N
     on_step : callable, optional
         Called as ``on_step(disc, u, gap_mm, force_N)`` after each converged step with the
         discretisation and the nodal displacements (mm), e.g. a
-        :class:`grasprom.fe.snapshots3d.SectionRecorder`; like ``progress``, for the forward
-        path only.
+        :class:`grasprom.fe.snapshots3d.SectionRecorder` (forward steps, as ``progress``).
 
     Returns
     -------
