@@ -89,6 +89,10 @@ def test_pointwise_tangent_is_the_stress_derivative(name):
             assert np.abs(A[..., kk, ll] - fd).max() < 1e-7 * scale, (kk, ll)
 
 
+#: the coarse mesh of the quick 3D runs (one layer, 8 elements around the quarter)
+COARSE = MeshSpec3D(n_layers=1, n_circ=8, n_jaw=3, n_free=3)
+
+
 def test_assembled_tangent_equals_the_plain_contraction():
     """Parity of the whole CSR tangent with a plain transcription of its definition:
     ``K_e = sum_q G^T A G dx`` by one ``einsum`` plus the condensed pressure term
@@ -237,7 +241,7 @@ def short_stroke():
             tube_length_mm=30.0,
             contact=contact,
             closed_gap_mm=27.0,
-            mesh=MeshSpec3D(n_layers=1, n_circ=8, n_jaw=3, n_free=3),
+            mesh=COARSE,
         )
         spec = replace(spec, solver=replace(spec.solver, land_on_gaps_mm=gaps))
         out[contact] = run_case_3d(spec, solver="superlu")
@@ -370,7 +374,7 @@ def test_inexact_active_set_passes_reach_the_same_frictionless_equilibrium(monke
         tube_length_mm=30.0,
         contact="frictionless",
         closed_gap_mm=20.0,
-        mesh=MeshSpec3D(n_layers=1, n_circ=8, n_jaw=3, n_free=3),
+        mesh=COARSE,
     )
     spec = replace(spec, solver=replace(spec.solver, land_on_gaps_mm=gaps))
     inexact = run_case_3d(spec)
@@ -390,7 +394,7 @@ def test_coulomb_3d_spans_frictionless_to_stick():
     (the contact slides at the edge of the contact patch).
     """
     gaps = (27.0, 24.0)
-    mesh = MeshSpec3D(n_layers=1, n_circ=8, n_jaw=3, n_free=3)
+    mesh = COARSE
     f, share = {}, {}
     for contact, mu in [("frictionless", 0.0), ("stick", 0.0), ("coulomb", 1e-6),
                         ("coulomb", 0.2), ("coulomb", 5.0)]:  # fmt: skip
@@ -473,9 +477,7 @@ def test_proximal_relaxation_lands_on_the_newton_equilibrium():
     force to 1e-7 (it solves the original problem, the proximal term only steers the path)."""
     from grasprom.fe import model3d
 
-    spec = CaseSpec3D(
-        "mr", 1.4, tube_length_mm=30.0, mesh=MeshSpec3D(n_layers=1, n_circ=8, n_jaw=3, n_free=3)
-    )
+    spec = CaseSpec3D("mr", 1.4, tube_length_mm=30.0, mesh=COARSE)
     st = model3d._setup(spec, "auto")
     R, h = 15.0, 14.4
     u0 = np.zeros(st.disc.ndof)
@@ -499,9 +501,7 @@ def test_a_cut_newton_step_adds_the_nodes_its_full_step_would_push_through():
     at gap 3.2 mm; ``python benchmarks/bench_fe3d.py wallsmeet``)."""
     from grasprom.fe import model3d
 
-    spec = CaseSpec3D(
-        "mr", 1.4, tube_length_mm=30.0, mesh=MeshSpec3D(n_layers=1, n_circ=8, n_jaw=3, n_free=3)
-    )
+    spec = CaseSpec3D("mr", 1.4, tube_length_mm=30.0, mesh=COARSE)
     st = model3d._setup(spec, "auto")
     d, R = st.disc, 15.0
     c = model3d._initial_contact(st, R)
@@ -647,7 +647,7 @@ def test_predicted_contact_is_on_below_its_gap_only_and_keeps_the_equilibrium(mo
         1.4,
         tube_length_mm=30.0,
         closed_gap_mm=10.0,
-        mesh=MeshSpec3D(n_layers=1, n_circ=8, n_jaw=3, n_free=3),
+        mesh=COARSE,
     )
     calls = []
     update = model3d._update_active
