@@ -22,6 +22,9 @@ from grasprom.fe.model3d import (
     solve_dirichlet,
 )
 
+#: the coarse mesh of the quick 3D runs (one layer, 8 elements around the quarter)
+COARSE = MeshSpec3D(n_layers=1, n_circ=8, n_jaw=3, n_free=3)
+
 
 @pytest.mark.parametrize("name", ["mr", "nh", "le"])
 def test_3d_energy_reduces_to_the_2d_plane_strain_energy(name):
@@ -87,10 +90,6 @@ def test_pointwise_tangent_is_the_stress_derivative(name):
             fd = (Pp - Pm) / (2 * h)
             scale = np.abs(A).max()
             assert np.abs(A[..., kk, ll] - fd).max() < 1e-7 * scale, (kk, ll)
-
-
-#: the coarse mesh of the quick 3D runs (one layer, 8 elements around the quarter)
-COARSE = MeshSpec3D(n_layers=1, n_circ=8, n_jaw=3, n_free=3)
 
 
 def test_assembled_tangent_equals_the_plain_contraction():
