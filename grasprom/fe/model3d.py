@@ -214,6 +214,12 @@ def _element_stiffness(G, Gt, A: np.ndarray, dx: np.ndarray, out=None) -> np.nda
     return np.matmul(Gt, T, out=out)
 
 
+def _element_forces(G: np.ndarray, P: np.ndarray, dx: np.ndarray) -> np.ndarray:
+    """Element nodal forces ``f[e, a, i] = sum_q P[i, j] G[a, j] dx`` (N) of the gradients
+    ``G = disc.grads`` and the stress ``P`` (MPa) of the same elements."""
+    return (np.matmul(G, P.transpose(0, 1, 3, 2)) * dx[..., None, None]).sum(axis=1)
+
+
 def _volumetric_stiffness(disc: Disc3D, e: slice, H: np.ndarray, ddU: np.ndarray) -> np.ndarray:
     """Tangent of the projected volumetric energy, ``[e, (a i), (b k)]`` (N/mm), elements ``e``."""
     G = disc.grads[e]
@@ -254,9 +260,8 @@ def assemble(disc: Disc3D, material: Material, u: np.ndarray, tangent: bool = Tr
     ne, nq, nloc, _ = G.shape
     if not tangent:
         P = stress_and_tangent(material, F, p, False)[0]
-        fe = (np.matmul(G, P.transpose(0, 1, 3, 2)) * disc.dx[..., None, None]).sum(axis=1)
-        f = np.bincount(disc.edofs.ravel(), weights=fe.ravel(), minlength=disc.ndof)
-        return f, None, minJ
+        fe = _element_forces(G, P, disc.dx)
+        return np.bincount(disc.edofs.ravel(), weights=fe.ravel(), minlength=disc.ndof), None, minJ
     fe = np.empty((ne, nloc, 3))
     Ke = np.empty((ne, nloc, 9 * nloc))
     block = block or ASSEMBLY_BLOCK
@@ -264,9 +269,8 @@ def assemble(disc: Disc3D, material: Material, u: np.ndarray, tangent: bool = Tr
         e = slice(s, min(s + block, ne))
         kb = None if k_pt is None else k_pt[e]
         P, A, _, H = stress_and_tangent(material, F[e], p[e], True, kb)
-        dx = disc.dx[e]
-        fe[e] = (np.matmul(G[e], P.transpose(0, 1, 3, 2)) * dx[..., None, None]).sum(axis=1)
-        Kb = _element_stiffness(G[e], disc.grads_t[e], A, dx, out=Ke[e])
+        fe[e] = _element_forces(G[e], P, disc.dx[e])
+        Kb = _element_stiffness(G[e], disc.grads_t[e], A, disc.dx[e], out=Ke[e])
         Kp = _volumetric_stiffness(disc, e, H, ddU[e])
         Kb.reshape(-1, nloc, 3, 3, nloc)[...] += Kp.reshape(-1, nloc, 3, nloc, 3).transpose(
             0, 3, 2, 4, 1
@@ -1065,8 +1069,9 @@ def _crease_onset(st: _Setup, snapped, h_snap: float, branch, t: float, landing)
         return (u, f, K, c), it
 
     dh = st.settings.crease_step_fraction * t
-    n = CREASE_BISECTIONS
-    return crease_onset(solve, below, snapped, h_snap, dh, 2.0 * t, landing, _STEP_ERRORS, n)
+    return crease_onset(
+        solve, below, snapped, h_snap, dh, 2.0 * t, landing, _STEP_ERRORS, CREASE_BISECTIONS
+    )
 
 
 def _splice_crease(spec: CaseSpec3D, st: _Setup, rows: list, branch: list, back: CreaseOnset):
