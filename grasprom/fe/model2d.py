@@ -1270,3 +1270,8 @@ def _validate_spec(spec: CaseSpec) -> None:
     if spec.contact not in CONTACTS_2D:
         raise ValueError(f"invalid contact={spec.contact!r}; valid: {', '.join(CONTACTS_2D)}")
     check_friction(spec.contact, spec.friction)
+    if spec.solver.predict_contact_below_mm != 0.0:
+        raise ValueError(
+            f"invalid solver.predict_contact_below_mm={spec.solver.predict_contact_below_mm!r}: "
+            "predicted contact is 3D only (--model 3d); the 2D model takes 0"
+        )

@@ -330,3 +330,10 @@ def test_coulomb_friction_never_exceeds_mu_times_the_normal_force(coulomb_runs):
 def test_coulomb_needs_a_coefficient_and_only_coulomb_takes_one(kw, match):
     with pytest.raises(ValueError, match=match):
         run_case(CaseSpec("mr", 1.4, **kw))
+
+
+def test_the_2d_model_refuses_predicted_contact():
+    """``SolverSettings.predict_contact_below_mm`` is a 3D option: 2D names it, not ignores it."""
+    spec = CaseSpec("mr", 1.4, solver=SolverSettings(predict_contact_below_mm=3.5))
+    with pytest.raises(ValueError, match="predict_contact_below_mm=3.5: predicted contact is 3D"):
+        run_case(spec)
