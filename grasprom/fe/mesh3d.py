@@ -151,6 +151,7 @@ class Disc3D:
     indptr: np.ndarray
     indices: np.ndarray
     diag_pos: np.ndarray
+    transpose_pos: np.ndarray  # CSR position of the entry (j, i) of the entry (i, j)
     grads_t: np.ndarray  # (ne, 27, nq * 3) dN_b/dX_l at [e, b, (q l)] (the tangent's layout)
     scatter_t: np.ndarray  # CSR position of each element-matrix entry in the order [e, b, i, k, a]
     beta: float = 0.0  # pointwise share of the volumetric energy
@@ -179,7 +180,8 @@ def _pressure_basis(basis, m, dx: np.ndarray, kind: str):
 
 
 def _csr_maps(edofs: np.ndarray, ndof: int):
-    """Unique CSR pattern of the element matrices and the scatter map into it."""
+    """Unique CSR pattern of the element matrices, the scatter map into it, the diagonal's
+    positions and each entry's transposed position (the pattern is symmetric)."""
     nd = edofs.shape[1]
     rows = np.repeat(edofs, nd, axis=1).ravel()
     cols = np.tile(edofs, (1, nd)).ravel()
@@ -188,7 +190,9 @@ def _csr_maps(edofs: np.ndarray, ndof: int):
     urows = uniq // ndof
     ucols = uniq % ndof
     indptr = np.searchsorted(urows, np.arange(ndof + 1))
-    return urows, ucols, scatter.ravel(), indptr, np.flatnonzero(urows == ucols)
+    transpose_pos = np.searchsorted(uniq, ucols * ndof + urows)
+    diag_pos = np.flatnonzero(urows == ucols)
+    return urows, ucols, scatter.ravel(), indptr, diag_pos, transpose_pos
 
 
 def _outer_area(m, element, outer_f) -> np.ndarray:
@@ -231,7 +235,7 @@ def discretise3d(outer_radius: float, thickness: float, z_nodes: np.ndarray, mes
     on_y0 = np.abs(X[:, 1]) < tol
     inner_nodes = inner_nodes[~on_y0[inner_nodes]]
     area = _outer_area(m, elem, outer_f)[outer_nodes]
-    rows, cols, scatter, indptr, diag_pos = _csr_maps(edofs, ndof)
+    rows, cols, scatter, indptr, diag_pos, transpose_pos = _csr_maps(edofs, ndof)
     ne, nq = dx.shape
     # [e, (a i), (b k)] -> [e, b, i, k, a]: the order model3d's element tangent comes out in
     scatter_t = scatter.reshape(ne, nloc, 3, nloc, 3).transpose(0, 3, 2, 4, 1).ravel()
@@ -257,6 +261,7 @@ def discretise3d(outer_radius: float, thickness: float, z_nodes: np.ndarray, mes
         indptr=indptr,
         indices=cols.astype(np.int32),
         diag_pos=diag_pos,
+        transpose_pos=transpose_pos,
         grads_t=grads_t,
         scatter_t=scatter_t,
         beta=float(mesh.beta),

@@ -653,14 +653,32 @@ def _frame(st: _Setup, u, fixed, fr, h) -> SlidingFrame:
     return SlidingFrame.on_jaw(st.jaw, st.disc.X, u, fixed, fr, h, z_fixed)
 
 
+def _row_positions(indptr: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """CSR positions of all entries in ``rows``."""
+    starts = indptr[rows]
+    lens = indptr[rows + 1] - starts
+    offsets = np.repeat(starts - np.cumsum(lens) + lens, lens)
+    return offsets + np.arange(int(lens.sum()))
+
+
 def _constrained(st: _Setup, K: sp.csr_matrix, fixed: np.ndarray, rotated: bool):
-    """K with the rows/cols of ``fixed`` replaced by identity."""
+    """K with the rows/cols of ``fixed`` replaced by identity.
+
+    Unrotated (``K`` on the discretisation's pattern): only the entries of the fixed rows and,
+    through the symmetric pattern, of the fixed columns are touched, not a mask over all
+    entries (4 x 36, 60 mm tube: 38 ms a call before).  The pattern is kept, stored zeros
+    included, so the sparse solver's analysis is reused.
+    """
     d = st.disc
     if not rotated:
-        keep = ~(fixed[d.rows] | fixed[d.cols])
-        data = K.data * keep
+        data = K.data.copy()
+        pos = _row_positions(d.indptr, np.flatnonzero(fixed))
+        data[pos] = 0.0
+        data[d.transpose_pos[pos]] = 0.0
         data[d.diag_pos[fixed]] = 1.0
-        return sp.csr_matrix((data, d.indices, d.indptr), shape=K.shape)
+        Kc = sp.csr_matrix((data, d.indices, d.indptr), shape=K.shape)
+        Kc.has_sorted_indices = True
+        return Kc
     free = sp.diags((~fixed).astype(float))
     return (free @ K @ free + sp.diags(fixed.astype(float))).tocsr()
 

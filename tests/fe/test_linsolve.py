@@ -152,3 +152,35 @@ def test_descent_direction_newton_step_then_levenberg_shift():
     e0 = np.zeros(100)
     e0[0] = 1.0
     assert descent_direction(solve_symmetric, sp.diags(d, format="csr"), e0) is None
+
+
+def test_a_levenberg_shift_keeps_the_pardiso_analysis():
+    """A constrained tangent stores zeros in its fixed rows and columns; the shifted matrix
+    ``K + s I`` keeps them, so PARDISO reuses its analysis through the shifts and back (one
+    analysis; ``K + s * identity`` dropped the zeros and cost two per shift), and the direction
+    equals LAPACK's ``-(K + s I)^-1 r`` for the first shift of the rule that descends (``K``
+    negative definite on the free dofs, so the plain Newton step does not)."""
+    from grasprom.fe.linsolve import descent_direction
+
+    solve = _pardiso()
+    n = 100
+    fixed = np.zeros(n, dtype=bool)
+    fixed[[0, 17, 55]] = True
+    Kd = -_laplacian_2d(10).toarray()
+    Kd[fixed, :] = 0.0
+    Kd[:, fixed] = 0.0
+    Kd[fixed, fixed] = 1.0
+    K = sp.csr_matrix(_laplacian_2d(10), copy=True)
+    K.data[:] = Kd[K.nonzero()]  # the Laplacian's pattern, zeros stored
+    assert np.count_nonzero(K.data == 0.0) > 0
+    r = np.where(fixed, 0.0, np.random.default_rng(6).standard_normal(n))
+    du = descent_direction(solve, K, r)
+    m = np.abs(np.diag(Kd)).mean()
+    for s in (0.0, 1e-3 * m, 1e-2 * m, 0.1 * m, m, 10.0 * m):
+        ref = -np.linalg.solve(Kd + s * np.eye(n), r)
+        if r @ ref < 0:
+            break
+    assert s > 0.0
+    np.testing.assert_allclose(du, ref, rtol=0, atol=1e-10 * np.abs(ref).max())
+    solve(K, r)
+    assert solve.analyses == 1
