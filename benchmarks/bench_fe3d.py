@@ -10,6 +10,7 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py laws          # frictionless, coulomb 0.1/0.3/1, stick to gap 5
     python benchmarks/bench_fe3d.py crease        # crease band: default vs small steps, dense
     python benchmarks/bench_fe3d.py length        # tube-length convergence (L, 2L)
+    python benchmarks/bench_fe3d.py free          # axial divisions beyond the jaw: 9/6/5/4
     python benchmarks/bench_fe3d.py mesh          # mesh convergence at fixed gaps
     python benchmarks/bench_fe3d.py meshband      # crease band and wall contact vs a fine mesh
     python benchmarks/bench_fe3d.py meshtube      # five cross-sections on the 240 mm tube (~1 h)
@@ -287,6 +288,30 @@ def bench_length(lengths=(60.0, 120.0, 240.0)) -> dict:  # n_free: 3, 6, 9 (defa
             rel = {g: out[(ends, b)][g] / out[(ends, a)][g] - 1 for g in GAPS}
             _print_row(f"{ends} F(L={b:g})/F(L={a:g})-1", rel, "{:9.4f}")
     return {f"{k[0]}_{k[1]:g}": v for k, v in out.items()}
+
+
+#: gaps of the axial study beyond the jaw: bending, the crease band, the walls meeting
+FREE_GAPS = (20.0, 10.0, 6.0, 5.0, 4.0, 3.5, 3.0, 2.9, 2.8, 2.7, 2.6, 2.5)
+
+
+def bench_free(n_free=(9, 6, 5, 4)) -> dict:
+    """Axial divisions beyond the jaw on the 240 mm tube (default cross-section, 9 the default):
+    force at fixed gaps relative to the first, wall time (about 4 min)."""
+    out, walls = {}, {}
+    for n in n_free:
+        spec = _base()
+        spec = _with_gaps(replace(spec, mesh=replace(spec.mesh, n_free=n)), FREE_GAPS)
+        t0 = time.perf_counter()
+        r = _run(spec, f"n_free={n}")
+        walls[n] = time.perf_counter() - t0
+        out[n] = _force_at(r.table, FREE_GAPS)
+    _header(FREE_GAPS)
+    ref = out[n_free[0]]
+    _print_row(f"n_free={n_free[0]} (N)", ref)
+    for n in n_free[1:]:
+        rel = {g: 100.0 * (out[n][g] / ref[g] - 1.0) for g in FREE_GAPS}
+        _print_row(f"n_free={n} (%), {walls[n] / walls[n_free[0]]:.2f} x time", rel, "{:9.2f}")
+    return {"forces_N": out, "wall_s": walls}
 
 
 def bench_mesh() -> dict:
@@ -743,6 +768,7 @@ SECTIONS = {
     "laws": bench_laws,
     "crease": bench_crease,
     "length": bench_length,
+    "free": bench_free,
     "mesh": bench_mesh,
     "meshband": bench_meshband,
     "planestrain": bench_planestrain,
