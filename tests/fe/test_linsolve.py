@@ -33,7 +33,7 @@ def test_singular_system_raises():
         solve_symmetric(K, np.ones(3))
 
 
-def _pardiso():
+def _pardiso(**kw):
     """PARDISO's wrapper; its package is a dev dependency, so CI never skips these tests."""
     import os
 
@@ -43,14 +43,16 @@ def _pardiso():
         if os.environ.get("CI") == "true":
             pytest.fail("pypardiso (MKL) is missing: pip install -e '.[dev]'")
         pytest.skip("pypardiso not installed")
-    return PardisoLDLT()
+    return PardisoLDLT(**kw)
 
 
+@pytest.mark.parametrize("matching", [False, True])
 @pytest.mark.parametrize("shift", [0.0, -1.5])
-def test_pardiso_ldlt_matches_dense_solve(shift):
+def test_pardiso_ldlt_matches_dense_solve(shift, matching):
     """MKL PARDISO's symmetric indefinite factor on the same SPD and indefinite systems agrees
-    with LAPACK to 1e-10 (a second, independent direct solver)."""
-    solve = _pardiso()
+    with LAPACK to 1e-10 (a second, independent direct solver), without scaling and matching
+    (the default) and with them."""
+    solve = _pardiso(matching=matching)
     K = _laplacian_2d(15) + shift * sp.identity(225)
     rhs = np.random.default_rng(2).standard_normal(225)
     ref = np.linalg.solve(K.toarray(), rhs)
