@@ -164,11 +164,10 @@ class PardisoLDLT:
     round-off from run to run, and a case through the crease band (a snap) can then take
     another path; one thread keeps a case reproducible to the bit.
 
-    Symmetric scaling and weighted matching (``matching``), PARDISO's default for matrix type
-    -2, are off: they serve saddle-point systems, and the FE tangents here have their pressure
-    condensed per element.  Without them a factorisation of the 4 x 36 tangent (60 mm tube,
-    29,565 dofs) takes 0.24 s instead of 0.33 s, and that whole case 647 s instead of 768 s
-    with forces within 0.1 % (824 against 765 Newton iterations).
+    Symmetric scaling and weighted matching (``matching``, PARDISO's default for matrix type
+    -2) are kept on.  Off, a factorisation of the 4 x 36 tangent (60 mm tube, 29,565 dofs)
+    takes the same time within 5 % (definite and indefinite), and that case's forces move by
+    less than 0.1 % (``python benchmarks/bench_fe3d.py assembly`` times both).
 
     Parameters
     ----------
@@ -185,7 +184,7 @@ class PardisoLDLT:
 
     MTYPE = -2
 
-    def __init__(self, threads: int = 1, matching: bool = False) -> None:
+    def __init__(self, threads: int = 1, matching: bool = True) -> None:
         self._pardiso, self._set_threads = _mkl_pardiso()
         self.threads = int(threads)
         self._pt = np.zeros(64, dtype=np.int64)
