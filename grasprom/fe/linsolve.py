@@ -166,8 +166,9 @@ class PardisoLDLT:
 
     Symmetric scaling and weighted matching (``matching``, PARDISO's default for matrix type
     -2) are kept on.  Off, a factorisation of the 4 x 36 tangent (60 mm tube, 29,565 dofs)
-    takes the same time within 5 % (definite and indefinite), and that case's forces move by
-    less than 0.1 % (``python benchmarks/bench_fe3d.py assembly`` times both).
+    takes the same time within 5 % (definite and indefinite; ``python benchmarks/bench_fe3d.py
+    assembly`` times both); only the round-off changes (that case's forces within 0.1 %; on the
+    240 mm tube it took another creased state, up to 5.5 % in the crease band).
 
     Parameters
     ----------
