@@ -514,6 +514,27 @@ def test_proximal_relaxation_lands_on_the_newton_equilibrium():
     assert jaw_force(relaxed) == pytest.approx(jaw_force(newton), rel=1e-7)
 
 
+def test_a_step_budget_caps_the_newton_iterations_over_all_passes():
+    """``_solve_step(..., budget=n)`` gives up after ``n`` Newton iterations summed over the
+    active-set passes (the relaxation's plain attempts use it: a failing attempt at a snap cost
+    about 70 s on 4 x 36, 240 mm tube), and with a budget it does not need returns exactly the
+    unbudgeted state."""
+    from grasprom.fe import model3d
+
+    spec = CaseSpec3D("mr", 1.4, tube_length_mm=30.0, mesh=COARSE)
+    st = model3d._setup(spec, "auto")
+    R, h = 15.0, 14.4
+    u0 = np.zeros(st.disc.ndof)
+    _, K0, _ = assemble(st.disc, st.material, u0)
+    c0 = model3d._initial_contact(st, R)
+    u, _, _, _, it = model3d._solve_step(st, u0, K0, c0, h)
+    assert it >= 3
+    ub, _, _, _, itb = model3d._solve_step(st, u0, K0, c0, h, budget=it)
+    assert itb == it and np.array_equal(ub, u)
+    with pytest.raises(model3d._NewtonFailure):
+        model3d._solve_step(st, u0, K0, c0, h, budget=it - 1)
+
+
 def test_a_cut_newton_step_adds_the_nodes_its_full_step_would_push_through():
     """When a Newton step is cut at the first touch, the nodes the uncut step (the probe) would
     push into the floor or the jaw join the active set at once: exactly those, the jaw's at the
