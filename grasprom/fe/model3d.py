@@ -1155,22 +1155,11 @@ def _relax(st: _Setup, u, K, c: _Contact, h: float):
     raise _NewtonFailure(f"no equilibrium within {st.settings.max_relax} proximal steps")
 
 
-#: Newton iterations (over all active-set passes) a forward step in the crease band (jaw height
-#: below twice the wall thickness) may spend before it fails and is quartered.  On 4 x 36
-#: (60 mm tube, mr 1.4 mm) the three failing steps near gap 4.0 mm took 166, 41 and 170 s
-#: (the floor crawl: up to 30 passes) and 56, 33 and 51 s with this, on the same path; a
-#: budget of 40 also cut the converging snap there, and its relaxation led to another creased
-#: state (``docs/fe-model.md``).
-BAND_STEP_BUDGET = 60
-
-
 def _advance(st: _Setup, u, K, c: _Contact, h: float, dh: float):
-    """The step to jaw height ``h`` (mm): Newton with the active set (in the crease band within
-    :data:`BAND_STEP_BUDGET` iterations), and if a jaw step ``dh`` (mm) of at most
-    ``SolverSettings.relax_below_mm`` fails, the snap by :func:`_relax`."""
-    budget = BAND_STEP_BUDGET if h < 2.0 * st.disc_thickness else None
+    """The step to jaw height ``h`` (mm): Newton with the active set, and if a jaw step ``dh``
+    (mm) of at most ``SolverSettings.relax_below_mm`` fails, the snap by :func:`_relax`."""
     try:
-        return _solve_step(st, u, K, c, h, budget=budget)
+        return _solve_step(st, u, K, c, h)
     except _STEP_ERRORS:
         if dh > st.settings.relax_below_mm:
             raise

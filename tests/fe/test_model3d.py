@@ -535,31 +535,6 @@ def test_a_step_budget_caps_the_newton_iterations_over_all_passes():
         model3d._solve_step(st, u0, K0, c0, h, budget=it - 1)
 
 
-def test_forward_steps_in_the_crease_band_get_the_step_budget(monkeypatch):
-    """A forward step below jaw height 2 t (the crease band and after) runs with
-    ``BAND_STEP_BUDGET``, one above it without a budget; a step that fails within the budget
-    with ``dh`` at most ``relax_below_mm`` goes to the relaxation."""
-    from grasprom.fe import model3d
-
-    spec = CaseSpec3D("mr", 1.4, tube_length_mm=30.0, mesh=COARSE)
-    st = model3d._setup(spec, "auto")
-    seen = []
-
-    def fake_step(st_, u, K, c, h, prox=None, budget=None):
-        seen.append(budget)
-        if budget is not None:
-            raise model3d._NewtonFailure("over budget")
-        return "solved"
-
-    monkeypatch.setattr(model3d, "_solve_step", fake_step)
-    monkeypatch.setattr(model3d, "_relax", lambda *a: "relaxed")
-    assert model3d._advance(st, None, None, None, 2.0 * 1.4 + 1e-9, 0.1) == "solved"
-    with pytest.raises(model3d._NewtonFailure):
-        model3d._advance(st, None, None, None, 2.0 * 1.4 - 1e-9, 0.1)
-    assert model3d._advance(st, None, None, None, 2.0, 1e-3) == "relaxed"
-    assert seen == [None, model3d.BAND_STEP_BUDGET, model3d.BAND_STEP_BUDGET]
-
-
 def test_a_cut_newton_step_adds_the_nodes_its_full_step_would_push_through():
     """When a Newton step is cut at the first touch, the nodes the uncut step (the probe) would
     push into the floor or the jaw join the active set at once: exactly those, the jaw's at the
