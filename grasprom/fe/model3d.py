@@ -757,7 +757,15 @@ ACTIVE_SET_RTOL = 1e-4
 
 
 def _newton(
-    st: _Setup, u, cons, h, c: _Contact, rtol=None, fric=None, start=None, max_it: int | None = None
+    st: _Setup,
+    u,
+    cons,
+    h,
+    c: _Contact,
+    rtol: float | None = None,
+    fric=None,
+    start=None,
+    max_it: int | None = None,
 ):
     """Newton-Raphson on the free dofs; returns ``(u, f, K, iterations, contact_event, probe)``.
 
@@ -907,7 +915,13 @@ def _slide_anchors(st: _Setup, c: _Contact, u, h) -> np.ndarray:
 
 
 def _solve_step(
-    st: _Setup, u, K_old, c: _Contact, h: float, prox: ProximalTerm | None = None, budget=None
+    st: _Setup,
+    u,
+    K_old,
+    c: _Contact,
+    h: float,
+    prox: ProximalTerm | None = None,
+    budget: int | None = None,
 ):
     """Equilibrium at jaw height ``h`` (mm) with the active-set loop (of the energy plus
     ``prox``, if given: a step of :func:`_relax`).  ``budget``: at most this many Newton
@@ -933,11 +947,7 @@ def _solve_step(
             u = _predict(st, u, K_old, fixed, jump)
         fric = _Potentials.of(CoulombFriction.of(st, c, h), prox)
         cons = (fixed, values, fr)
-        left = (
-            st.settings.max_newton
-            if budget is None
-            else min(st.settings.max_newton, budget - iters)
-        )
+        left = None if budget is None else min(st.settings.max_newton, budget - iters)
         tol = None if exact else loose
         u, f, K, it, event, probe = _newton(st, u, cons, h, c, tol, fric, last, left)
         last = (u, f, K) if fric is None else None
