@@ -33,6 +33,7 @@ import pandas as pd
 from grasprom import __version__
 from grasprom.fe.atomicio import atomic_write_bytes, atomic_write_json, json_default
 from grasprom.fe.model2d import COLUMN_DESCRIPTIONS, CONTRACT_COLUMNS, CaseResult, CaseSpec
+from grasprom.fe.model3d import COLUMN_DESCRIPTIONS_3D
 from grasprom.fe.provenance import now_iso, provenance
 
 SCHEMA_VERSION = 1
@@ -50,8 +51,10 @@ VALID_STATUSES = ("complete", "partial")
 REQUIRED_COLUMNS = CONTRACT_COLUMNS
 """Columns every case CSV must hold."""
 
-COLUMN_UNITS = {k: v.split(",")[0] for k, v in COLUMN_DESCRIPTIONS.items()}
-"""Units of the known CSV columns (``"1"`` = dimensionless)."""
+COLUMN_UNITS = {
+    k: v.split(",")[0] for k, v in {**COLUMN_DESCRIPTIONS, **COLUMN_DESCRIPTIONS_3D}.items()
+}
+"""Units of the known CSV columns of both models (``"1"`` = dimensionless)."""
 
 SPEC_UNITS = {
     "thickness_mm": "mm",

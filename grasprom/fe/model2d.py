@@ -61,8 +61,9 @@ COLUMNS = (
     "newton_iterations",
 )
 
-#: all columns a 2D case writes, in order: :data:`COLUMNS` and the stick reaction's share
-COLUMNS_2D = (*COLUMNS, "tangential_share")
+#: all columns a 2D case writes, in order: :data:`COLUMNS`, the stick reaction's share and the
+#: strain energy
+COLUMNS_2D = (*COLUMNS, "tangential_share", "strain_energy_mJ")
 
 CONTACTS_2D = ("frictionless", "stick", "coulomb")
 """Jaw contact laws of the 2D model (:attr:`CaseSpec.contact`)."""
@@ -81,6 +82,9 @@ COLUMN_DESCRIPTIONS = {
     "newton_iterations": "1, Newton iterations of the step (all active-set passes)",
     "tangential_share": "1, sum of |tangential| / sum of normal nodal jaw reactions (0 if "
     "frictionless)",
+    "strain_energy_mJ": "mJ, strain energy of the ring (N mm/mm of the whole cross-section x "
+    "jaw_length_mm); = the jaws' work, the integral of force_N over the gap closed, along a "
+    "smooth branch",
 }
 
 
@@ -1008,8 +1012,9 @@ def _splice_crease(disc, material, rows: list, branch: list, back: CreaseOnset, 
     creased states of :func:`_crease_onset` (:func:`grasprom.fe.crease.splice_crease`)."""
 
     def entry(hb: float, sb: _State, itb: int):
-        rb = _step_row(disc, sb, hb, R, scale_N, itb)
-        return rb, (hb, energy(disc, material, sb.u), rb["force_N"] / scale_N)
+        eb = energy(disc, material, sb.u)
+        rb = _step_row(disc, sb, hb, R, scale_N, itb, eb)
+        return rb, (hb, eb, rb["force_N"] / scale_N)
 
     return splice_crease(rows, branch, back, entry)
 
@@ -1103,7 +1108,7 @@ def run_case(spec: CaseSpec, progress=None, solver: str = "auto") -> CaseResult:
     state = _initial_state(disc, material, spec.contact == "stick")
     if spec.contact == "coulomb":
         state.mu = float(spec.friction)
-    rows = [dict(zip(COLUMNS_2D, (2 * R, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0, 0.0)))]
+    rows = [dict(zip(COLUMNS_2D, (2 * R, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0, 0.0, 0.0)))]
     h, dh = R, s.dh_initial_mm
     landing = sorted((0.5 * g for g in s.land_on_gaps_mm), reverse=True)
     total_newton, force_prev = 0, 0.0
@@ -1123,8 +1128,8 @@ def run_case(spec: CaseSpec, progress=None, solver: str = "auto") -> CaseResult:
             dh *= 0.25
             continue
         total_newton += iters + new_state.lag_newton
-        row = _step_row(disc, new_state, h_new, R, scale_N, iters)
         e_new = energy(disc, material, new_state.u)
+        row = _step_row(disc, new_state, h_new, R, scale_N, iters, e_new)
         if s.maxwell_crease and t < h_new < 2.0 * t and row["force_N"] < force_prev * (1 - 1e-4):
             back = _crease_onset(
                 disc, material, new_state, h_new, branch, t, s, fscale, landing, solve
@@ -1216,9 +1221,16 @@ def _limit_step(
 
 
 def _step_row(
-    disc: _Discretisation, state: _State, h: float, R: float, scale_N: float, iters: int
+    disc: _Discretisation,
+    state: _State,
+    h: float,
+    R: float,
+    scale_N: float,
+    iters: int,
+    energy_q: float,
 ) -> dict:
-    """Table row (:data:`COLUMNS_2D`) of a converged step at jaw height ``h`` (mm)."""
+    """Table row (:data:`COLUMNS_2D`) of a converged step at jaw height ``h`` (mm);
+    ``energy_q`` is the quarter model's strain energy (N mm/mm, :func:`energy`)."""
     force_q, width_q, peak, inner_w, share = _contact_measures(disc, state)
     force_N = force_q * scale_N
     _, J = _kinematics(disc, state.u)
@@ -1237,6 +1249,7 @@ def _step_row(
                 float(J.min()),
                 iters,
                 share,
+                2.0 * scale_N * energy_q,  # 4 quarters x jaw length
             ),
         )
     )

@@ -62,7 +62,12 @@ this before its friction force reaches ``mu N`` (as the 2D model's
 :data:`grasprom.fe.model2d.FRICTION_EPS_MM`)."""
 
 #: extra 3D columns appended after the 2D :data:`COLUMNS`
-EXTRA_COLUMNS_3D = ("contact_area_mm2", "contact_length_mm", "tangential_share")
+EXTRA_COLUMNS_3D = (
+    "contact_area_mm2",
+    "contact_length_mm",
+    "tangential_share",
+    "strain_energy_mJ",
+)
 COLUMNS_3D = (*COLUMNS, *EXTRA_COLUMNS_3D)
 COLUMN_DESCRIPTIONS_3D = {
     **COLUMN_DESCRIPTIONS,
@@ -74,6 +79,8 @@ COLUMN_DESCRIPTIONS_3D = {
     "contact_area_mm2": "mm^2, jaw contact area (reference area of the nodes in contact)",
     "contact_length_mm": "mm, axial length of the jaw contact (full, both halves)",
     "tangential_share": "1, sum of tangential / sum of normal nodal jaw reactions",
+    "strain_energy_mJ": "mJ, strain energy of the whole tube (8 x the 1/8 model's, N mm); = "
+    "the jaws' work, the integral of force_N over the gap closed, along a smooth branch",
 }
 
 
@@ -1006,7 +1013,9 @@ def contact_measures(st: _Setup, c: _Contact, u, f, h) -> dict:
     return out
 
 
-def _row(spec: CaseSpec3D, h: float, m: dict, minJ: float, iters: int) -> dict:
+def _row(spec: CaseSpec3D, h: float, m: dict, minJ: float, iters: int, e: float) -> dict:
+    """Table row (:data:`COLUMNS_3D`) at jaw height ``h`` (mm): ``m`` from
+    :func:`contact_measures`, ``e`` the 1/8 model's strain energy (N mm, :func:`energy`)."""
     force = 4.0 * m["force_q"]
     vals = (
         2 * h,
@@ -1022,6 +1031,7 @@ def _row(spec: CaseSpec3D, h: float, m: dict, minJ: float, iters: int) -> dict:
         m["area"],
         m["length"],
         m["share"],
+        8.0 * e,
     )
     return dict(zip(COLUMNS_3D, vals))
 
@@ -1125,8 +1135,9 @@ def _splice_crease(spec: CaseSpec3D, st: _Setup, rows: list, branch: list, back:
     def entry(hb: float, state, itb: int):
         ub, fb, _, cb = state
         minJ = float(np.linalg.det(kinematics(st.disc, ub)).min())
-        rb = _row(spec, hb, contact_measures(st, cb, ub, fb, hb), minJ, itb)
-        return rb, (hb, energy(st.disc, st.material, ub), 0.25 * rb["force_N"])
+        eb = energy(st.disc, st.material, ub)
+        rb = _row(spec, hb, contact_measures(st, cb, ub, fb, hb), minJ, itb, eb)
+        return rb, (hb, eb, 0.25 * rb["force_N"])
 
     return splice_crease(rows, branch, back, entry)
 
@@ -1209,7 +1220,7 @@ def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=N
     c = _initial_contact(st, R)
     u = np.zeros(st.disc.ndof)
     f, K, _ = assemble(st.disc, st.material, u)
-    rows = [_row(spec, R, contact_measures(st, c, u, f, R), 1.0, 0)]
+    rows = [_row(spec, R, contact_measures(st, c, u, f, R), 1.0, 0, 0.0)]
     branch = [(R, 0.0, 0.0)]  # (h, strain energy, 1/8 jaw reaction) of every row
     maxwell = s.maxwell_crease and spec.contact != "coulomb"  # friction dissipates
     h, dh = R, s.dh_initial_mm
@@ -1233,13 +1244,13 @@ def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=N
         u, f, K, c, h = u_new, f_new, K_new, c_new, h - dh
         total_newton += iters
         minJ = float(np.linalg.det(kinematics(st.disc, u)).min())
-        row = _row(spec, h, contact_measures(st, c, u, f, h), minJ, iters)
+        e = energy(st.disc, st.material, u)
+        row = _row(spec, h, contact_measures(st, c, u, f, h), minJ, iters, e)
         if maxwell and t < h < 2.0 * t and row["force_N"] < force_prev * (1 - 1e-4):
             back = _crease_onset(st, (u, f, K, c), h, branch, t, landing)
             rows, branch = _splice_crease(spec, st, rows, branch, back)
             total_newton += back.newton_iterations
         rows.append(row)
-        e = energy(st.disc, st.material, u) if maxwell else np.nan  # only the crease needs it
         branch.append((h, e, 0.25 * row["force_N"]))
         if progress is not None:
             progress(2 * h, row["force_N"])

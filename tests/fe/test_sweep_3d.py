@@ -28,8 +28,11 @@ def test_3d_sweep_writes_the_contract_and_the_model_keys(tmp_path, capsys):
     assert _sweep(out, "--model", "3d", *COARSE) == 0
     table = pd.read_csv(out / "mr_t1.40.csv")
     assert set(CONTRACT_COLUMNS) <= set(table.columns)
-    assert {"contact_area_mm2", "tangential_share"} <= set(table.columns)
+    assert {"contact_area_mm2", "tangential_share", "strain_energy_mJ"} <= set(table.columns)
     meta = json.loads((out / "mr_t1.40.json").read_text())
+    units = meta["units"]  # every column has its unit in the sidecar
+    assert set(units) == set(table.columns) and None not in units.values()
+    assert units["contact_area_mm2"] == "mm^2" and units["strain_energy_mJ"] == "mJ"
     assert meta["model"] == "3d" and meta["contact"] == "stick"
     assert meta["tube_length_mm"] == 30.0 and meta["ends"] == "free"
     assert meta["status"] == "complete" and meta["max_force_N"] > 0
@@ -48,6 +51,7 @@ def test_3d_sweep_writes_the_contract_and_the_model_keys(tmp_path, capsys):
     assert _sweep(out2, "--closed-gap", "27") == 0
     meta2 = json.loads((out2 / "mr_t1.40.json").read_text())
     assert meta2["model"] == "2d" and meta2["tube_length_mm"] is None
+    assert None not in meta2["units"].values() and meta2["units"]["strain_energy_mJ"] == "mJ"
     f3 = table.set_index("gap_mm")["force_N"].iloc[-1]
     f2 = pd.read_csv(out2 / "mr_t1.40.csv").set_index("gap_mm")["force_N"].iloc[-1]
     assert f3 > 1.5 * f2 > 0
