@@ -38,7 +38,13 @@ import numpy as np
 import pandas as pd
 import scipy.sparse as sp
 
-from grasprom.fe.crease import CreaseOnset, crease_onset, hermite_energy, splice_crease
+from grasprom.fe.crease import (
+    CreaseOnset,
+    crease_onset,
+    hermite_energy,
+    is_snap,
+    splice_crease,
+)
 from grasprom.fe.hyperelastic3d import invariants as _invariants
 from grasprom.fe.hyperelastic3d import pointwise3d, stress_and_tangent
 from grasprom.fe.linsolve import descent_direction, make_solver, solver_name
@@ -1036,6 +1042,14 @@ def _row(spec: CaseSpec3D, h: float, m: dict, minJ: float, iters: int, e: float)
     return dict(zip(COLUMNS_3D, vals))
 
 
+def _state_row(spec: CaseSpec3D, st: _Setup, h: float, u, f, c: _Contact, iters: int):
+    """Table row of a converged state at jaw height ``h`` (mm) and its 1/8 model's strain energy
+    (N mm): ``(row, energy)``."""
+    minJ = float(np.linalg.det(kinematics(st.disc, u)).min())
+    e = energy(st.disc, st.material, u)
+    return _row(spec, h, contact_measures(st, c, u, f, h), minJ, iters, e), e
+
+
 def _setup(spec: CaseSpec3D, solver: str) -> _Setup:
     _validate_spec(spec)
     material = spec.make_material()
@@ -1134,9 +1148,7 @@ def _splice_crease(spec: CaseSpec3D, st: _Setup, rows: list, branch: list, back:
 
     def entry(hb: float, state, itb: int):
         ub, fb, _, cb = state
-        minJ = float(np.linalg.det(kinematics(st.disc, ub)).min())
-        eb = energy(st.disc, st.material, ub)
-        rb = _row(spec, hb, contact_measures(st, cb, ub, fb, hb), minJ, itb, eb)
+        rb, eb = _state_row(spec, st, hb, ub, fb, cb, itb)
         return rb, (hb, eb, 0.25 * rb["force_N"])
 
     return splice_crease(rows, branch, back, entry)
@@ -1243,15 +1255,14 @@ def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=N
             continue
         u, f, K, c, h = u_new, f_new, K_new, c_new, h - dh
         total_newton += iters
-        minJ = float(np.linalg.det(kinematics(st.disc, u)).min())
-        e = energy(st.disc, st.material, u)
-        row = _row(spec, h, contact_measures(st, c, u, f, h), minJ, iters, e)
-        if maxwell and t < h < 2.0 * t and row["force_N"] < force_prev * (1 - 1e-4):
+        row, e = _state_row(spec, st, h, u, f, c, iters)
+        entry = (h, e, 0.25 * row["force_N"])
+        if maxwell and t < h < 2.0 * t and is_snap(branch[-1], entry):
             back = _crease_onset(st, (u, f, K, c), h, branch, t, landing)
             rows, branch = _splice_crease(spec, st, rows, branch, back)
             total_newton += back.newton_iterations
         rows.append(row)
-        branch.append((h, e, 0.25 * row["force_N"]))
+        branch.append(entry)
         if progress is not None:
             progress(2 * h, row["force_N"])
         if on_step is not None:

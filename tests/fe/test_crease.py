@@ -4,7 +4,7 @@ analytic energy: a cubic Hermite through (h, E, F = -dE/dh) is exact for a cubic
 import numpy as np
 import pytest
 
-from grasprom.fe.crease import crease_onset, hermite_energy
+from grasprom.fe.crease import crease_onset, hermite_energy, is_snap, released_energy
 
 
 def test_hermite_energy_is_exact_for_a_cubic_and_uses_dE_dh_equal_minus_F():
@@ -60,3 +60,24 @@ def test_crease_onset_finds_the_energy_crossing_of_two_analytic_branches():
     # a drop that is no jump to a lower branch: nothing to place, the probe still counted
     none = crease_onset(solve, lambda s, h: False, 1.5, 1.5, dh, 2.8)
     assert none.states == [] and none.newton_iterations == 2
+
+
+def test_a_snap_shows_as_released_energy_even_when_the_force_rises():
+    """Along an analytic branch E(h) = a (H - h)^2 (F = 2 a (H - h), linear: the trapezoid rule
+    is exact) a step releases nothing; a step that lands on a state lower by a part of the
+    step's work is a snap whether the force rises or drops; a force drop alone is one too."""
+    a, H = 0.7, 10.0
+
+    def entry(h, de=0.0, df=0.0):
+        return (h, a * (H - h) ** 2 + de, 2 * a * (H - h) + df)
+
+    prev, cur = entry(4.0), entry(3.9)
+    work = 0.5 * (prev[2] + cur[2]) * 0.1
+    assert released_energy(prev, cur) == pytest.approx(0.0, abs=1e-12)
+    assert not is_snap(prev, cur)
+    lower = entry(3.9, de=-0.3 * work, df=+0.05)  # stiffer state, less energy: a snap
+    assert released_energy(prev, lower) == pytest.approx(0.3 * work + 0.5 * 0.05 * 0.1, rel=1e-9)
+    assert is_snap(prev, lower)
+    assert not is_snap(prev, entry(3.9, de=-0.01 * work))  # trapezoid-size noise: no snap
+    assert is_snap(prev, entry(3.9, df=-0.2 * cur[2] - prev[2] + cur[2]))  # force dropped
+    assert not is_snap(entry(10.0), entry(10.0))  # no travel, no work
