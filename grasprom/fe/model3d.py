@@ -349,17 +349,19 @@ class JawProfile:
 class _Contact:
     """Contact state: active jaw nodes (over ``disc.outer_nodes``), stick anchors, floor;
     ``normal``: with Coulomb contact (None otherwise), the jaw's normal reaction (N) at each
-    outer node in the last solution (the lagged normal force of the friction)."""
+    outer node in the last solution (the lagged normal force of the friction); ``h``: the jaw
+    height (mm) of the state it belongs to (NaN if none: anchors then at the projection)."""
 
     jaw_active: np.ndarray
     anchor: np.ndarray  # (n_outer, 3): x, y - h, z of the stick point / friction anchor
     floor_active: np.ndarray
     normal: np.ndarray | None = None
+    h: float = np.nan
 
     def copy(self) -> _Contact:
         normal = None if self.normal is None else self.normal.copy()
         return _Contact(
-            self.jaw_active.copy(), self.anchor.copy(), self.floor_active.copy(), normal
+            self.jaw_active.copy(), self.anchor.copy(), self.floor_active.copy(), normal, self.h
         )
 
 
@@ -876,8 +878,60 @@ def _jaw_touch(st: _Setup, xyz, h, tol):
     return gap < -tol, np.column_stack([xyz[on, 0], yp - h, zp])
 
 
-def _update_active(st: _Setup, c: _Contact, u, f, h, add_only: bool = False, probe=None):
+#: Bisections of a node's path for the point where it touches the jaw (:func:`touch_points`):
+#: 2^-40 of the step's travel.
+TOUCH_BISECTIONS = 40
+
+
+def touch_points(jaw: JawProfile, x0, x1, h0: float, h1: float) -> np.ndarray:
+    """Stick anchors where nodes first touch the jaw on their way through a step.
+
+    Each node moves on the straight path ``x0 -> x1`` while the jaw moves from height ``h0`` to
+    ``h1`` (both linear in a path parameter ``s`` in [0, 1]).  The touch point is the smallest
+    ``s`` where the node's jaw gap reaches zero (bisected :data:`TOUCH_BISECTIONS` times;
+    ``s = 0`` for a node already touching at the start).  A node that touches during a step is
+    stuck where it touched, not where the step's end state (which may have snapped through
+    the jaw) puts its projection.
+
+    Parameters
+    ----------
+    jaw : JawProfile
+        The jaw face (its shape depends on ``y - h`` and ``z`` only).
+    x0, x1 : ndarray, shape (n, 3)
+        Node positions (mm) at the start and the end of the step; ``x1`` penetrates the jaw.
+    h0, h1 : float
+        Jaw heights (mm) at the start and the end.
+
+    Returns
+    -------
+    ndarray, shape (n, 3)
+        Anchors ``(x, y - h, z)`` (mm) of the touch points on the jaw face.
+    """
+    x0, x1 = np.asarray(x0, float), np.asarray(x1, float)
+
+    def at(s):
+        p = x0 + s[:, None] * (x1 - x0)
+        hh = h0 + s * (h1 - h0)
+        gap, yp, zp, _, _ = jaw.project(p[:, 1] - hh, p[:, 2], 0.0)
+        return gap, np.column_stack([p[:, 0], yp, zp])
+
+    lo, hi = np.zeros(len(x0)), np.ones(len(x0))
+    outside = at(lo)[0] > 0.0
+    for _ in range(TOUCH_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        out = at(mid)[0] > 0.0
+        lo, hi = np.where(out, mid, lo), np.where(out, hi, mid)
+    return at(np.where(outside, hi, 0.0))[1]
+
+
+def _update_active(
+    st: _Setup, c: _Contact, u, f, h, add_only: bool = False, probe=None, start=None
+):
     """New contact state from a converged solution (release tensile, add penetrating).
+
+    ``start``: positions (mm) of the step's start state, whose jaw height is ``c.h``; an added
+    node is then stuck where its path from there touches the jaw (:func:`touch_points`), not at
+    the projection of its penetrating position.
 
     ``add_only``: the state is not in equilibrium (a cut Newton step); only add nodes.
     ``probe``: displacements (mm) of the uncut Newton step of such a state; nodes it would push
@@ -898,6 +952,9 @@ def _update_active(st: _Setup, c: _Contact, u, f, h, add_only: bool = False, pro
         jaw_hit, anchor = _jaw_touch(st, xyz, h, tol)
         added = jaw_hit & ~new.jaw_active & ~c.jaw_active
         new.jaw_active |= added
+        if start is not None and np.isfinite(c.h) and np.any(added):
+            nodes = d.outer_nodes[added]
+            anchor[added] = touch_points(st.jaw, start[nodes], xyz[nodes], c.h, h)
         new.anchor[added] = anchor[added]
         new.floor_active |= ~c.floor_active & (xyz[inn, 1] < -tol)
     same = np.array_equal(new.jaw_active, c.jaw_active)
@@ -953,6 +1010,7 @@ def _solve_step(
     exact = False
     coulomb = c.normal is not None  # Coulomb contact (:func:`_initial_contact`)
     last = None  # (u, f, K) of the last pass, to start the next one without reassembling
+    start = st.disc.X + u.reshape(-1, 3)  # where nodes that touch during the step come from
     for _ in range(st.settings.max_active_set):
         fixed, values, fr = _targets(st, c, h, u)
         jump = _enforce(st, u, fixed, values, fr, h) - u
@@ -966,7 +1024,7 @@ def _solve_step(
         last = (u, f, K) if fric is None else None
         iters += it
         K_old = K
-        new, settled = _update_active(st, c, u, f, h, add_only=event, probe=probe)
+        new, settled = _update_active(st, c, u, f, h, event, probe, start)
         if coulomb and not event:
             lam = _normal_forces(st, c, u, f, h)
             scale = max(float(lam.max(initial=0.0)), 1e-12)
@@ -977,6 +1035,7 @@ def _solve_step(
             if exact:
                 if coulomb:
                     new.anchor = _slide_anchors(st, new, u, h)
+                new.h = h
                 return u, f, K, new, iters
             exact = True
         c = new
@@ -1075,7 +1134,10 @@ def _initial_contact(st: _Setup, R: float) -> _Contact:
     on = d.outer_nodes
     X = d.X[on]
     c = _Contact(
-        np.zeros(on.size, dtype=bool), np.zeros((on.size, 3)), np.zeros(d.inner_nodes.size, bool)
+        np.zeros(on.size, dtype=bool),
+        np.zeros((on.size, 3)),
+        np.zeros(d.inner_nodes.size, bool),
+        h=R,
     )
     top = np.isclose(X[:, 0], 0.0, atol=1e-12) & (X[:, 2] <= st.jaw.a + 1e-12)
     c.jaw_active[top] = True
