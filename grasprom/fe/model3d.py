@@ -887,11 +887,12 @@ def touch_points(jaw: JawProfile, x0, x1, h0: float, h1: float) -> np.ndarray:
     """Stick anchors where nodes first touch the jaw on their way through a step.
 
     Each node moves on the straight path ``x0 -> x1`` while the jaw moves from height ``h0`` to
-    ``h1`` (both linear in a path parameter ``s`` in [0, 1]).  The touch point is the smallest
-    ``s`` where the node's jaw gap reaches zero (bisected :data:`TOUCH_BISECTIONS` times;
-    ``s = 0`` for a node already touching at the start).  A node that touches during a step is
-    stuck where it touched, not where the step's end state (which may have snapped through
-    the jaw) puts its projection.
+    ``h1`` (both linear in a path parameter ``s`` in [0, 1]).  The touch point is where the
+    node's jaw gap reaches zero, bisected :data:`TOUCH_BISECTIONS` times between the start
+    (outside) and the end (penetrating); if the gap changes sign more than once along the path
+    it is one of the crossings.  A node already touching at the start gets ``s = 0``.  A node
+    that touches during a step is stuck where it touched, not where the step's end state
+    (which may have snapped through the jaw) puts its projection.
 
     Parameters
     ----------
