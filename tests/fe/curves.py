@@ -1,4 +1,5 @@
-"""Force-gap curves of a loaded sweep (``grasprom.fe.load_sweep``) for the shipped-data tests."""
+"""Force-gap curves for the FE tests: of a loaded sweep (``grasprom.fe.load_sweep``) and the
+jaws' work along a case table."""
 
 from __future__ import annotations
 
@@ -16,3 +17,10 @@ def force_at(df, material: str, t: float, gap: float) -> float:
     g, f = curve(df, material, t)
     assert g.min() <= gap + 1e-9 <= g.max() + 1e-9, f"{material} t={t} does not reach gap {gap}"
     return float(np.interp(-gap, -g, f))
+
+
+def trapezoid_work(table) -> np.ndarray:
+    """The jaws' work (mJ = N mm) up to each row of a case table: the trapezoid rule of
+    ``force_N`` over the gap closed (two jaws, each moving half the gap change)."""
+    g, f = table["gap_mm"].to_numpy(), table["force_N"].to_numpy()
+    return np.concatenate([[0.0], np.cumsum(0.5 * (f[1:] + f[:-1]) * -np.diff(g))])

@@ -14,6 +14,7 @@ from grasprom.fe.model2d import (
     ring_mesh,
     run_case,
 )
+from tests.fe.curves import trapezoid_work
 
 
 @pytest.mark.parametrize("nu", [0.3, 0.49])
@@ -345,8 +346,7 @@ def test_strain_energy_column_equals_the_jaws_work_2d():
     over the steps is within 0.2 % of it (measured -0.20..+0.17 % to gap 6 mm; to gap 3 mm, the
     crease placed by energy, within 0.35 %); a wrong symmetry factor is off by 100 %."""
     r = run_case(CaseSpec("mr", 1.4, contact="frictionless", closed_gap_mm=6.0))
-    g, f = r.table["gap_mm"].to_numpy(), r.table["force_N"].to_numpy()
-    work = np.concatenate([[0.0], np.cumsum(0.5 * (f[1:] + f[:-1]) * -np.diff(g))])
+    work = trapezoid_work(r.table)
     e = r.table["strain_energy_mJ"].to_numpy()
     assert r.status == "complete" and e[0] == 0.0 and np.all(np.diff(e) > 0)
     np.testing.assert_allclose(e[1:], work[1:], rtol=3e-3)

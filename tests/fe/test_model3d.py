@@ -22,6 +22,7 @@ from grasprom.fe.model3d import (
     solve_dirichlet,
     touch_points,
 )
+from tests.fe.curves import trapezoid_work
 
 #: the coarse mesh of the quick 3D runs (one layer, 8 elements around the quarter)
 COARSE = MeshSpec3D(n_layers=1, n_circ=8, n_jaw=3, n_free=3)
@@ -607,7 +608,7 @@ def test_3d_crease_is_placed_where_the_work_balances_the_strain_energy():
         r = run_case_3d(spec, on_step=keep)
         assert r.status == "complete"
         g, f = r.table["gap_mm"].to_numpy(), r.table["force_N"].to_numpy()
-        work = np.concatenate([[0.0], np.cumsum(0.5 * (f[1:] + f[:-1]) * -np.diff(g)) / 8.0])
+        work = trapezoid_work(r.table) / 8.0  # N mm, the 1/8 model
         before = max(k for k in range(len(g)) if g[k] > 4 * t and g[k] in energies)
         drops = [k for k in range(1, len(f)) if f[k] < f[k - 1] * (1 - 1e-4)]
         assert drops
@@ -717,13 +718,6 @@ def test_predicted_contact_is_on_below_its_gap_only_and_keeps_the_equilibrium(mo
         run_case_3d(replace(spec, solver=replace(spec.solver, predict_contact_below_mm=-1.0)))
 
 
-def _trapezoid_work(table) -> np.ndarray:
-    """The jaws' work (mJ = N mm) along the rows: the trapezoid rule of force_N over the gap
-    closed (two jaws, each moving half the gap change)."""
-    g, f = table["gap_mm"].to_numpy(), table["force_N"].to_numpy()
-    return np.concatenate([[0.0], np.cumsum(0.5 * (f[1:] + f[:-1]) * -np.diff(g))])
-
-
 def test_strain_energy_column_equals_the_jaws_work(short_stroke):
     """Work-energy balance: with the jaws moving along their normal (frictionless, or stuck
     nodes carried along), nothing dissipates and the strain energy of the whole tube equals
@@ -735,7 +729,7 @@ def test_strain_energy_column_equals_the_jaws_work(short_stroke):
     _, res = short_stroke
     for r in res.values():
         e = r.table["strain_energy_mJ"].to_numpy()
-        w = _trapezoid_work(r.table)
+        w = trapezoid_work(r.table)
         assert e[0] == 0.0 and np.all(np.diff(e) > 0)
         np.testing.assert_allclose(e[1:], w[1:], rtol=5e-3)
 
