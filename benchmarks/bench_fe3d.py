@@ -21,6 +21,8 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py assembly      # assembly: blocked vs one pass vs plain einsum
     python benchmarks/bench_fe3d.py ccx           # against CalculiX, frictionless, 3 meshes (~1 h)
     python benchmarks/bench_fe3d.py wallsmeet     # 4 x 36, 240 mm: contact predicted or not (~1.5h)
+    python benchmarks/bench_fe3d.py activeset     # 4 x 36, 240 mm: active-set tolerance (~40 min)
+    python benchmarks/bench_fe3d.py activeset --closed-gap 12   # its bending part (~4 min)
 
 Forces in N, gaps in mm.  t = 1.4 mm, Mooney-Rivlin, unless stated.  Timings are wall-clock on
 whatever machine runs this (noisy when shared).
@@ -772,6 +774,53 @@ def bench_wallsmeet(switch_gap: float = 3.5, budget_factor: float = 2.0) -> dict
     return out
 
 
+#: ``model3d.ACTIVE_SET_RTOL`` before it was raised (the baseline of :func:`bench_activeset`)
+ACTIVE_SET_RTOL_BEFORE = 1e-4
+
+
+def bench_activeset(closed_gap: float = 1.5) -> dict:
+    """Active-set passes solved to 1e-4 of the force scale (before) against the current
+    ``model3d.ACTIVE_SET_RTOL``, on the converged cross-section (4 x 36 graded 8:1, six axial
+    divisions beyond the jaw, 240 mm tube, mr, t = 1.4, stick, contact predicted below gap
+    3.5 mm) from first touch to ``closed_gap`` (mm) or the force cap: wall time, steps, Newton
+    iterations and the force at fixed gaps of each, the ratios and the force differences
+    (~40 min for the full stroke; ``closed_gap=12`` gives the bending part in ~4 min)."""
+    from grasprom.fe import model3d
+
+    base = _base(closed_gap_mm=closed_gap)
+    mesh = replace(base.mesh, **LAYER_MESHES["4 x 36"], n_free=6)
+    spec = replace(base, mesh=mesh)
+    gaps = tuple(g for g in LAYER_GAPS if g > closed_gap)
+    spec = _with_gaps(
+        replace(spec, solver=replace(spec.solver, predict_contact_below_mm=3.5)), gaps
+    )
+    current = model3d.ACTIVE_SET_RTOL
+    out = {}
+    _header(gaps)
+    for label, rtol in (("before", ACTIVE_SET_RTOL_BEFORE), ("current", current)):
+        model3d.ACTIVE_SET_RTOL = rtol
+        try:
+            t0 = time.perf_counter()
+            r = _run(spec, f"ACTIVE_SET_RTOL {rtol:g}")
+            wall = time.perf_counter() - t0
+        finally:
+            model3d.ACTIVE_SET_RTOL = current
+        force = _force_at(r.table, gaps)
+        _print_row(f"{label} {rtol:g} (N)", force)
+        out[label] = {"rtol": rtol, "wall_s": wall, "steps": r.info["steps"]}
+        out[label] |= {"newton": r.info["newton_iterations"], "force_N": force}
+    b, c = out["before"], out["current"]
+    diff = {g: 100.0 * (c["force_N"][g] / b["force_N"][g] - 1.0) for g in gaps}
+    _print_row("current vs before (%)", diff, "{:+9.2f}")
+    out["ratio"] = {"wall": b["wall_s"] / c["wall_s"], "newton": b["newton"] / c["newton"]}
+    print(
+        f"  before/current: wall {out['ratio']['wall']:.2f} x, Newton iterations"
+        f" {out['ratio']['newton']:.2f} x",
+        flush=True,
+    )
+    return out
+
+
 SECTIONS = {
     "shell": bench_shell,
     "default": bench_default,
@@ -791,6 +840,7 @@ SECTIONS = {
     "layers": bench_layers,
     "ccx": bench_ccx,
     "wallsmeet": bench_wallsmeet,
+    "activeset": bench_activeset,
 }
 
 
@@ -810,6 +860,12 @@ def main(argv: list[str]) -> None:
         default="0.8,1.4,2.0",
         help="'cases' section: wall thicknesses in mm (default 0.8,1.4,2.0)",
     )
+    ap.add_argument(
+        "--closed-gap",
+        type=float,
+        default=1.5,
+        help="'activeset' section: end of the stroke in mm (default 1.5: to the force cap)",
+    )
     ap.add_argument("--json", help="write the figures as JSON here")
     args = ap.parse_args(argv)
     unknown = [n for n in args.sections if n not in SECTIONS]
@@ -822,6 +878,8 @@ def main(argv: list[str]) -> None:
             mats = tuple(args.materials.split(","))
             ts = tuple(float(x) for x in args.thickness.split(","))
             results[name] = bench_cases(ts, mats)
+        elif name == "activeset":
+            results[name] = bench_activeset(args.closed_gap)
         else:
             results[name] = SECTIONS[name]()
     text = json.dumps(results, default=str)
