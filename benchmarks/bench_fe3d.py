@@ -790,7 +790,8 @@ def bench_activeset(closed_gap: float = 1.5) -> dict:
     base = _base(closed_gap_mm=closed_gap)
     mesh = replace(base.mesh, **LAYER_MESHES["4 x 36"], n_free=6)
     spec = replace(base, mesh=mesh)
-    gaps = tuple(g for g in LAYER_GAPS if g > closed_gap)
+    gaps = tuple(g for g in (20.0, 15.0) + LAYER_GAPS if g > closed_gap)
+    gaps += (closed_gap,) if closed_gap > 2.5 else ()  # a short stroke ends on its closed gap
     spec = _with_gaps(
         replace(spec, solver=replace(spec.solver, predict_contact_below_mm=3.5)), gaps
     )
