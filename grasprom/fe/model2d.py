@@ -786,6 +786,7 @@ class _State:
     K: sp.csr_matrix | None = None
     mu: float = np.inf  # Coulomb coefficient (finite: contact="coulomb", :class:`_Friction`)
     lag_newton: int = 0  # Newton iterations spent re-solving for the lagged friction normal
+    h: float = np.nan  # jaw height (mm) of the state (touch points of the next step)
 
 
 FRICTION_EPS_MM = 1e-3
@@ -890,6 +891,47 @@ def _fixed_and_values(disc, state: _State, h: float):
     return fixed, values
 
 
+def touch_x(disc, u0: np.ndarray, u1: np.ndarray, nodes: np.ndarray, h0: float, h1: float):
+    """Stick anchors (x, mm) where outer ``nodes`` first touch the flat jaw on their way
+    through a step (the 2D counterpart of :func:`grasprom.fe.model3d.touch_points`).
+
+    Each node moves on the straight path from its position under ``u0`` (mm, the step's start)
+    to its position under ``u1`` (the end, above the jaw), while the jaw face ``y = h`` moves
+    from ``h0`` to ``h1`` (mm), both linear in a path parameter ``s``.  The node touches where
+    ``y(s) = h(s)``: ``s = (h0 - y0) / ((h0 - y0) + (y1 - h1))``, clipped to [0, 1].  A node
+    already on the jaw at the start (``y0 >= h0``: released there, by this step's passes or
+    the last step's, and back) keeps the projection rule, the end position's x: anchored at its
+    start it would be held where it just pulled off, released again and re-added, without end
+    (the 2D default case, t = 0.8 mm, crawled at gap 17.88 mm).  With ``h0`` unknown (NaN) the
+    projection rule too.
+
+    Parameters
+    ----------
+    disc : discretisation
+        Its reference coordinates ``X`` (mm).
+    u0, u1 : ndarray
+        Nodal displacements (mm) at the step's start and end, interleaved ``(ux, uy)``.
+    nodes : ndarray of int
+        The nodes that entered the contact.
+    h0, h1 : float
+        Jaw heights (mm) at the start and the end.
+
+    Returns
+    -------
+    ndarray
+        x (mm) of each node's touch point.
+    """
+    X = disc.X[nodes]
+    x0, y0 = X[:, 0] + u0[2 * nodes], X[:, 1] + u0[2 * nodes + 1]
+    x1, y1 = X[:, 0] + u1[2 * nodes], X[:, 1] + u1[2 * nodes + 1]
+    if not np.isfinite(h0):
+        return x1
+    below, above = h0 - y0, y1 - h1
+    denom = below + above
+    s = np.clip(np.divide(below, denom, out=np.ones_like(denom), where=denom > 0), 0.0, 1.0)
+    return np.where(below > 0.0, x0 + s * (x1 - x0), x1)
+
+
 def _solve_step(
     disc,
     material,
@@ -915,6 +957,7 @@ def _solve_step(
     K_old = state.K
     iters = lag = 0
     lagged = False  # this pass only re-solves for the friction normal of the last pass
+    released = np.zeros_like(jaw_active)  # jaw nodes this step's passes released
     tol_pen = 1e-9 * max(1.0, h)
     for _ in range(settings.max_active_set):
         trial = _State(u, jaw_active, floor_active, anchor_x, state.stick, mu=state.mu)
@@ -950,12 +993,18 @@ def _solve_step(
         lagged = same and not settled
         if same and settled:
             done = _State(u, jaw_active, floor_active, anchor_x, state.stick, f, K, state.mu)
+            done.h = h
             if fric is not None:  # the anchors follow the slide
                 done.anchor_x = fric.step_end_anchor(disc, jaw_active, u)
                 done.lag_newton = lag
             return done, iters
         added = new_jaw & ~jaw_active
-        anchor_x[added] = disc.X[on[added], 0] + u[2 * on[added]]  # stick where it touched
+        # stick where it touched on the way from the step's start; a node this step already
+        # released comes back at its position (a touch anchor that did not hold would cycle)
+        released |= jaw_active & ~new_jaw
+        x_end = disc.X[on, 0] + u[2 * on]
+        touch = touch_x(disc, state.u, u, on[added], state.h, h)
+        anchor_x[added] = np.where(released[added], x_end[added], touch)
         if fric is not None:
             fric.anchor[added] = anchor_x[added]
         jaw_active, floor_active = new_jaw, new_floor
@@ -1105,7 +1154,7 @@ def run_case(spec: CaseSpec, progress=None, solver: str = "auto") -> CaseResult:
     fscale = material.mu * t
     scale_N = 2.0 * spec.jaw_length_mm  # quarter N/mm -> one jaw N
     h_end = 0.5 * spec.closed_gap_mm
-    state = _initial_state(disc, material, spec.contact == "stick")
+    state = _initial_state(disc, material, spec.contact == "stick", R)
     if spec.contact == "coulomb":
         state.mu = float(spec.friction)
     rows = [dict(zip(COLUMNS_2D, (2 * R, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0, 0.0, 0.0)))]
@@ -1192,14 +1241,16 @@ def _solver_record(
     }
 
 
-def _initial_state(disc: _Discretisation, material: Material, stick: bool) -> _State:
-    """Undeformed state at first touch: the top outer node(s) on the jaw, no floor contact."""
+def _initial_state(disc: _Discretisation, material: Material, stick: bool, h: float) -> _State:
+    """Undeformed state at first touch (jaw height ``h``, mm): the top outer node(s) on the jaw,
+    no floor contact."""
     state = _State(
         np.zeros(disc.ndof),
         np.zeros(disc.outer_nodes.size, dtype=bool),
         np.zeros(disc.inner_nodes.size, dtype=bool),
         disc.X[disc.outer_nodes, 0].copy(),
         stick,
+        h=h,
     )
     top = np.flatnonzero(np.isclose(disc.X[disc.outer_nodes, 0], 0.0, atol=1e-12))
     state.jaw_active[top] = True
