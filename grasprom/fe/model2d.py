@@ -36,7 +36,13 @@ import numpy as np
 import pandas as pd
 import scipy.sparse as sp
 
-from grasprom.fe.crease import CreaseOnset, crease_onset, hermite_energy, splice_crease
+from grasprom.fe.crease import (
+    SNAP_FORCE_DROP,
+    CreaseOnset,
+    crease_onset,
+    hermite_energy,
+    splice_crease,
+)
 from grasprom.fe.linsolve import descent_direction, make_solver, solver_name
 from grasprom.fe.materials import Material, cofactor, get_material, pointwise_tangent
 from grasprom.fe.stepping import land_on
@@ -891,7 +897,7 @@ def _fixed_and_values(disc, state: _State, h: float):
     return fixed, values
 
 
-def touch_x(disc, u0: np.ndarray, u1: np.ndarray, nodes: np.ndarray, h0: float, h1: float):
+def touch_x(disc, u0: np.ndarray, u1: np.ndarray, nodes: np.ndarray, h0, h1: float):
     """Stick anchors (x, mm) where outer ``nodes`` first touch the flat jaw on their way
     through a step (the 2D counterpart of :func:`grasprom.fe.model3d.touch_points`).
 
@@ -902,8 +908,8 @@ def touch_x(disc, u0: np.ndarray, u1: np.ndarray, nodes: np.ndarray, h0: float, 
     already on the jaw at the start (``y0 >= h0``: released there, by this step's passes or
     the last step's, and back) keeps the projection rule, the end position's x: anchored at its
     start it would be held where it just pulled off, released again and re-added, without end
-    (the 2D default case, t = 0.8 mm, crawled at gap 17.88 mm).  With ``h0`` unknown (NaN) the
-    projection rule too.
+    (the 2D default case, t = 0.8 mm, crawled at gap 17.88 mm).  Where ``h0`` is unknown (NaN)
+    the projection rule too.
 
     Parameters
     ----------
@@ -913,8 +919,11 @@ def touch_x(disc, u0: np.ndarray, u1: np.ndarray, nodes: np.ndarray, h0: float, 
         Nodal displacements (mm) at the step's start and end, interleaved ``(ux, uy)``.
     nodes : ndarray of int
         The nodes that entered the contact.
-    h0, h1 : float
-        Jaw heights (mm) at the start and the end.
+    h0 : float or ndarray
+        Jaw height (mm) at the start, one for all nodes or one each (NaN: the node's start does
+        not count, e.g. it was released during the step).
+    h1 : float
+        Jaw height (mm) at the end.
 
     Returns
     -------
@@ -924,9 +933,7 @@ def touch_x(disc, u0: np.ndarray, u1: np.ndarray, nodes: np.ndarray, h0: float, 
     X = disc.X[nodes]
     x0, y0 = X[:, 0] + u0[2 * nodes], X[:, 1] + u0[2 * nodes + 1]
     x1, y1 = X[:, 0] + u1[2 * nodes], X[:, 1] + u1[2 * nodes + 1]
-    if not np.isfinite(h0):
-        return x1
-    below, above = h0 - y0, y1 - h1
+    below, above = h0 - y0, y1 - h1  # NaN where h0 is: "below > 0" is then False
     denom = below + above
     s = np.clip(np.divide(below, denom, out=np.ones_like(denom), where=denom > 0), 0.0, 1.0)
     return np.where(below > 0.0, x0 + s * (x1 - x0), x1)
@@ -1000,11 +1007,10 @@ def _solve_step(
             return done, iters
         added = new_jaw & ~jaw_active
         # stick where it touched on the way from the step's start; a node this step already
-        # released comes back at its position (a touch anchor that did not hold would cycle)
+        # released comes back at its end position (a touch anchor that did not hold would cycle)
         released |= jaw_active & ~new_jaw
-        x_end = disc.X[on, 0] + u[2 * on]
-        touch = touch_x(disc, state.u, u, on[added], state.h, h)
-        anchor_x[added] = np.where(released[added], x_end[added], touch)
+        h0 = np.where(released[added], np.nan, state.h)
+        anchor_x[added] = touch_x(disc, state.u, u, on[added], h0, h)
         if fric is not None:
             fric.anchor[added] = anchor_x[added]
         jaw_active, floor_active = new_jaw, new_floor
@@ -1179,7 +1185,8 @@ def run_case(spec: CaseSpec, progress=None, solver: str = "auto") -> CaseResult:
         total_newton += iters + new_state.lag_newton
         e_new = energy(disc, material, new_state.u)
         row = _step_row(disc, new_state, h_new, R, scale_N, iters, e_new)
-        if s.maxwell_crease and t < h_new < 2.0 * t and row["force_N"] < force_prev * (1 - 1e-4):
+        drop = row["force_N"] < force_prev * (1 - SNAP_FORCE_DROP)
+        if s.maxwell_crease and t < h_new < 2.0 * t and drop:
             back = _crease_onset(
                 disc, material, new_state, h_new, branch, t, s, fscale, landing, solve
             )
