@@ -36,13 +36,7 @@ import numpy as np
 import pandas as pd
 import scipy.sparse as sp
 
-from grasprom.fe.crease import (
-    SNAP_FORCE_DROP,
-    CreaseOnset,
-    crease_onset,
-    hermite_energy,
-    splice_crease,
-)
+from grasprom.fe.crease import CreaseOnset, crease_onset, hermite_energy, splice_crease
 from grasprom.fe.linsolve import descent_direction, make_solver, solver_name
 from grasprom.fe.materials import Material, cofactor, get_material, pointwise_tangent
 from grasprom.fe.stepping import land_on
@@ -1185,8 +1179,7 @@ def run_case(spec: CaseSpec, progress=None, solver: str = "auto") -> CaseResult:
         total_newton += iters + new_state.lag_newton
         e_new = energy(disc, material, new_state.u)
         row = _step_row(disc, new_state, h_new, R, scale_N, iters, e_new)
-        drop = row["force_N"] < force_prev * (1 - SNAP_FORCE_DROP)
-        if s.maxwell_crease and t < h_new < 2.0 * t and drop:
+        if s.maxwell_crease and t < h_new < 2.0 * t and row["force_N"] < force_prev * (1 - 1e-4):
             back = _crease_onset(
                 disc, material, new_state, h_new, branch, t, s, fscale, landing, solve
             )
