@@ -501,6 +501,10 @@ ELEMENT_CASES = (
     ("2x24 g8 beta 0.05", 2, 24, 8.0, 1.0, 0.05),
     ("3x24 g8 rg3 beta 0.05", 3, 24, 8.0, 3.0, 0.05),
     ("4x48 g8.35 beta 0.02", 4, 48, 8.35, 1.0, 0.02),
+    # the full tube's converged cross-section, its refinement, and a beta that holds the fold
+    ("4x36 g8 beta 0.05", 4, 36, 8.0, 1.0, 0.05),
+    ("4x64 g8 beta 0.05", 4, 64, 8.0, 1.0, 0.05),
+    ("4x36 g8 beta 0.2", 4, 36, 8.0, 1.0, 0.2),
 )
 
 

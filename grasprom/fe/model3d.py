@@ -894,9 +894,14 @@ def touch_points(jaw: JawProfile, x0, x1, h0: float, h1: float) -> np.ndarray:
     ``h1`` (both linear in a path parameter ``s`` in [0, 1]).  The touch point is where the
     node's jaw gap reaches zero, bisected :data:`TOUCH_BISECTIONS` times between the start
     (outside) and the end (penetrating); if the gap changes sign more than once along the path
-    it is one of the crossings.  A node already touching at the start gets ``s = 0``.  A node
-    that touches during a step is stuck where it touched, not where the step's end state
-    (which may have snapped through the jaw) puts its projection.
+    it is one of the crossings.  A node that touches during a step is stuck where it touched,
+    not where the step's end state (which may have snapped through the jaw) puts its
+    projection.  A node already touching at the start (released there, by this step's passes or
+    the last step's, and back) keeps the projection of its end position, as where ``h0`` is NaN
+    (the node's start does not count: this step already released it): anchored where it just
+    pulled off, it would be released again and re-added without end (the 2D rule,
+    :func:`grasprom.fe.model2d.touch_x`; 4 x 36, ``beta`` 0.2, 240 mm tube: "active set did not
+    settle" three times at gap 15.06 mm without it).
 
     Parameters
     ----------
@@ -904,8 +909,10 @@ def touch_points(jaw: JawProfile, x0, x1, h0: float, h1: float) -> np.ndarray:
         The jaw face (its shape depends on ``y - h`` and ``z`` only).
     x0, x1 : ndarray, shape (n, 3)
         Node positions (mm) at the start and the end of the step; ``x1`` penetrates the jaw.
-    h0, h1 : float
-        Jaw heights (mm) at the start and the end.
+    h0 : float or ndarray, shape (n,)
+        Jaw height (mm) at the start, one for all nodes or one each (NaN: the projection rule).
+    h1 : float
+        Jaw height (mm) at the end.
 
     Returns
     -------
@@ -913,6 +920,9 @@ def touch_points(jaw: JawProfile, x0, x1, h0: float, h1: float) -> np.ndarray:
         Anchors ``(x, y - h, z)`` (mm) of the touch points on the jaw face.
     """
     x0, x1 = np.asarray(x0, float), np.asarray(x1, float)
+    h0 = np.broadcast_to(np.asarray(h0, float), (len(x0),))
+    counts = np.isfinite(h0)
+    h0 = np.where(counts, h0, h1)
 
     def at(s):
         p = x0 + s[:, None] * (x1 - x0)
@@ -921,22 +931,24 @@ def touch_points(jaw: JawProfile, x0, x1, h0: float, h1: float) -> np.ndarray:
         return gap, np.column_stack([p[:, 0], yp, zp])
 
     lo, hi = np.zeros(len(x0)), np.ones(len(x0))
-    outside = at(lo)[0] > 0.0
+    outside = counts & (at(lo)[0] > 0.0)
     for _ in range(TOUCH_BISECTIONS):
         mid = 0.5 * (lo + hi)
         out = at(mid)[0] > 0.0
         lo, hi = np.where(out, mid, lo), np.where(out, hi, mid)
-    return at(np.where(outside, hi, 0.0))[1]
+    return at(np.where(outside, hi, 1.0))[1]
 
 
 def _update_active(
-    st: _Setup, c: _Contact, u, f, h, add_only: bool = False, probe=None, start=None
+    st: _Setup, c: _Contact, u, f, h, add_only: bool = False, probe=None, start=None, released=None
 ):
     """New contact state from a converged solution (release tensile, add penetrating).
 
     ``start``: positions (mm) of the step's start state, whose jaw height is ``c.h``; an added
     node is then stuck where its path from there touches the jaw (:func:`touch_points`), not at
-    the projection of its penetrating position.
+    the projection of its penetrating position.  ``released``: bool over the outer nodes, jaw
+    nodes the step's earlier passes released; such a node comes back at its projection (a
+    touch anchor that did not hold would cycle).
 
     ``add_only``: the state is not in equilibrium (a cut Newton step); only add nodes.
     ``probe``: displacements (mm) of the uncut Newton step of such a state; nodes it would push
@@ -959,7 +971,8 @@ def _update_active(
         new.jaw_active |= added
         if start is not None and np.isfinite(c.h) and np.any(added):
             nodes = d.outer_nodes[added]
-            anchor[added] = touch_points(st.jaw, start[nodes], xyz[nodes], c.h, h)
+            h0 = c.h if released is None else np.where(released[added], np.nan, c.h)
+            anchor[added] = touch_points(st.jaw, start[nodes], xyz[nodes], h0, h)
         new.anchor[added] = anchor[added]
         new.floor_active |= ~c.floor_active & (xyz[inn, 1] < -tol)
     same = np.array_equal(new.jaw_active, c.jaw_active)
@@ -1016,6 +1029,7 @@ def _solve_step(
     coulomb = c.normal is not None  # Coulomb contact (:func:`_initial_contact`)
     last = None  # (u, f, K) of the last pass, to start the next one without reassembling
     start = st.disc.X + u.reshape(-1, 3)  # where nodes that touch during the step come from
+    released = np.zeros_like(c.jaw_active)  # jaw nodes this step's passes released
     for _ in range(st.settings.max_active_set):
         fixed, values, fr = _targets(st, c, h, u)
         jump = _enforce(st, u, fixed, values, fr, h) - u
@@ -1029,7 +1043,8 @@ def _solve_step(
         last = (u, f, K) if fric is None else None
         iters += it
         K_old = K
-        new, settled = _update_active(st, c, u, f, h, event, probe, start)
+        new, settled = _update_active(st, c, u, f, h, event, probe, start, released)
+        released |= c.jaw_active & ~new.jaw_active
         if coulomb and not event:
             lam = _normal_forces(st, c, u, f, h)
             scale = max(float(lam.max(initial=0.0)), 1e-12)

@@ -696,9 +696,9 @@ def test_predicted_contact_is_on_below_its_gap_only_and_keeps_the_equilibrium(mo
     calls = []
     update = model3d._update_active
 
-    def spy(st, c, u, f, h, add_only=False, probe=None, start=None):
+    def spy(st, c, u, f, h, add_only=False, probe=None, start=None, released=None):
         calls.append((2.0 * h, add_only, probe is not None))
-        return update(st, c, u, f, h, add_only, probe, start)
+        return update(st, c, u, f, h, add_only, probe, start, released)
 
     monkeypatch.setattr(model3d, "_update_active", spy)
     runs = {}
@@ -737,14 +737,19 @@ def test_strain_energy_column_equals_the_jaws_work(short_stroke):
 def test_touch_points_are_where_the_path_meets_the_jaw():
     """Stick anchors at the first touch along a step, against hand-solved crossings: a flat jaw
     (gap h - y), the jaw moving down while the node moves up, the rounded edge (circle of
-    radius r about (y, z) = (h + r, a)), and a node touching already at the start."""
+    radius r about (y, z) = (h + r, a)); a node touching already at the start, and one whose
+    start does not count (NaN start height: released earlier in the step), keep the projection
+    of their end position (anchored where they pulled off they would cycle)."""
     jaw = JawProfile(2.0, 1.0)
     x0 = np.array([[1.0, 4.0, 0.0], [0.3, 5.5, 2.95], [0.2, 5.2, 1.0]])
     x1 = np.array([[1.5, 6.0, 0.5], [0.3, 5.5, 2.5], [0.4, 5.6, 1.2]])
     got = touch_points(jaw, x0, x1, 5.0, 5.0)
     z_arc = 2.0 + np.sqrt(1.0 - 0.5**2)  # (5.5 - 6)^2 + (z - 2)^2 = 1
-    want = [[1.25, 0.0, 0.25], [0.3, 0.5, z_arc], [0.2, 0.0, 1.0]]
+    want = [[1.25, 0.0, 0.25], [0.3, 0.5, z_arc], [0.4, 0.0, 1.2]]
     np.testing.assert_allclose(got, want, atol=1e-9)
+    # per-node start heights: the first node's start does not count -> its end projection
+    got = touch_points(jaw, x0[:2], x1[:2], np.array([np.nan, 5.0]), 5.0)
+    np.testing.assert_allclose(got, [[1.5, 0.0, 0.5], [0.3, 0.5, z_arc]], atol=1e-9)
     # jaw 5.5 -> 4.5 while the node rises 4 -> 5: gap 1.5 - 2 s, touch at s = 0.75
     moving = touch_points(jaw, [[0.0, 4.0, 1.0]], [[0.4, 5.0, 1.0]], 5.5, 4.5)
     np.testing.assert_allclose(moving, [[0.3, 0.0, 1.0]], atol=1e-9)
@@ -764,7 +769,7 @@ def test_stick_anchors_at_the_touch_point_make_the_force_independent_of_the_step
     gaps = (26.0, 22.0, 18.0)
     update = model3d._update_active
 
-    def projection(st, c, u, f, h, add_only=False, probe=None, start=None):
+    def projection(st, c, u, f, h, add_only=False, probe=None, start=None, released=None):
         return update(st, c, u, f, h, add_only, probe, None)
 
     def forces(dh_max: float) -> np.ndarray:
