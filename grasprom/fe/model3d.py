@@ -887,7 +887,7 @@ def _jaw_touch(st: _Setup, xyz, h, tol):
 TOUCH_BISECTIONS = 40
 
 
-def touch_points(jaw: JawProfile, x0, x1, h0: float, h1: float) -> np.ndarray:
+def touch_points(jaw: JawProfile, x0, x1, h0: float | np.ndarray, h1: float) -> np.ndarray:
     """Stick anchors where nodes first touch the jaw on their way through a step.
 
     Each node moves on the straight path ``x0 -> x1`` while the jaw moves from height ``h0`` to
