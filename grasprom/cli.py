@@ -259,6 +259,31 @@ def _add_model_options(s: argparse.ArgumentParser) -> None:
             "constraint (default of grasprom.fe.model3d)"
         ),
     )
+    s.add_argument(
+        "--n-jaw",
+        type=int,
+        default=None,
+        metavar="N",
+        help="3d: axial mesh divisions over the jaw and its fine margin (default of "
+        "grasprom.fe.mesh3d.MeshSpec3D)",
+    )
+    s.add_argument(
+        "--n-free",
+        type=int,
+        default=None,
+        metavar="N",
+        help="3d: axial mesh divisions beyond the jaw, growing toward the tube end (default of "
+        "grasprom.fe.mesh3d.MeshSpec3D)",
+    )
+    s.add_argument(
+        "--predict-contact-below",
+        type=float,
+        default=None,
+        metavar="T",
+        help="3d, experimental: below this jaw gap, in wall thicknesses (2.5 = gap 3.5 mm at "
+        "t = 1.4 mm), a Newton step cut at a first touch adds every node its full step would "
+        "push into contact, so fine meshes do not crawl where the inner walls meet (default off)",
+    )
 
 
 def _add_report_parser(sub) -> None:
@@ -486,7 +511,15 @@ def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
     from grasprom.fe.grid import check_out_dir
     from grasprom.fe.grid3d import Model3DOptions, check_options, to_2d, to_3d
 
-    opts3d = Model3DOptions(args.contact, args.friction, args.tube_length, args.ends)
+    opts3d = Model3DOptions(
+        args.contact,
+        args.friction,
+        args.tube_length,
+        args.ends,
+        args.n_jaw,
+        args.n_free,
+        args.predict_contact_below,
+    )
     try:
         check_options(args.model, opts3d)
         specs = build_grid(

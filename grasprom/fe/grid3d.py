@@ -55,12 +55,34 @@ class Model3DOptions:
         Length of the modelled tube (mm).
     ends : str or None
         ``seed`` (in-plane translations held at the free edges) or ``free``.
+    n_jaw, n_free : int or None
+        Axial mesh divisions over the jaw (and its fine margin) and beyond it
+        (:class:`~grasprom.fe.mesh3d.MeshSpec3D`).
+    predict_contact_below_t : float or None
+        Predicted contact (experimental) below this jaw gap, in wall thicknesses: each case's
+        ``SolverSettings.predict_contact_below_mm`` is this times its thickness (mm), so one
+        value fits a thickness sweep (the converged 4 x 36 mesh needs it where the inner walls
+        close onto each other: 2.5 = gap 3.5 mm at t = 1.4 mm).
     """
 
     contact: str | None = None
     friction: float | None = None
     tube_length_mm: float | None = None
     ends: str | None = None
+    n_jaw: int | None = None
+    n_free: int | None = None
+    predict_contact_below_t: float | None = None
+
+    def given_3d_only(self) -> list[str]:
+        """The CLI names of the options given that only the 3D model takes."""
+        flags = (
+            ("--tube-length", self.tube_length_mm),
+            ("--ends", self.ends),
+            ("--n-jaw", self.n_jaw),
+            ("--n-free", self.n_free),
+            ("--predict-contact-below", self.predict_contact_below_t),
+        )
+        return [name for name, v in flags if v is not None]
 
 
 def check_options(model: str, opts: Model3DOptions) -> None:
@@ -83,10 +105,23 @@ def check_options(model: str, opts: Model3DOptions) -> None:
     tl = opts.tube_length_mm
     if tl is not None and not (isinstance(tl, int | float) and math.isfinite(tl) and tl > 0):
         raise SweepInputError(f"--tube-length: must be a length > 0 in mm, got {tl!r}")
+    _check_axial(opts)
     if model == "2d":
-        given = [n for n, v in (("--tube-length", tl), ("--ends", opts.ends)) if v is not None]
+        given = opts.given_3d_only()
         if given:
             raise SweepInputError(f"{', '.join(given)}: only with --model 3d")
+
+
+def _check_axial(opts: Model3DOptions) -> None:
+    """``--n-jaw`` >= 1 and ``--n-free`` >= 0 (integers); ``--predict-contact-below`` a
+    multiple of the wall thickness in (0, 100]."""
+    for name, v, least in (("--n-jaw", opts.n_jaw, 1), ("--n-free", opts.n_free, 0)):
+        if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v < least):
+            raise SweepInputError(f"{name}: must be an integer >= {least}, got {v!r}")
+    m = opts.predict_contact_below_t
+    if m is not None and not (isinstance(m, int | float) and math.isfinite(m) and 0 < m <= 100):
+        what = "a jaw gap in wall thicknesses in (0, 100]"
+        raise SweepInputError(f"--predict-contact-below: must be {what}, got {m!r}")
 
 
 def _check_friction(opts: Model3DOptions) -> None:
@@ -149,19 +184,25 @@ def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, float])
         )
     extra = {k: v for k, v in dataclasses.asdict(opts).items() if v is not None}
     extra["friction"] = float(opts.friction) if opts.contact == "coulomb" else 0.0
-    mesh3d = MeshSpec3D(**dict(mesh))
+    axial = {k: extra.pop(k) for k in ("n_jaw", "n_free") if k in extra}
+    below_t = extra.pop("predict_contact_below_t", None)
+    mesh3d = MeshSpec3D(**dict(mesh), **axial)
     out = []
     for s in specs:
-        out.append(
-            CaseSpec3D(
-                material=s.material,
-                thickness_mm=s.thickness_mm,
-                diameter_mm=s.diameter_mm,
-                jaw_length_mm=s.jaw_length_mm,
-                closed_gap_mm=s.closed_gap_mm,
-                force_cap_N=s.force_cap_N,
-                mesh=mesh3d,
-                **extra,
-            )
+        spec = CaseSpec3D(
+            material=s.material,
+            thickness_mm=s.thickness_mm,
+            diameter_mm=s.diameter_mm,
+            jaw_length_mm=s.jaw_length_mm,
+            closed_gap_mm=s.closed_gap_mm,
+            force_cap_N=s.force_cap_N,
+            mesh=mesh3d,
+            **extra,
         )
+        if below_t is not None:
+            below = float(below_t) * s.thickness_mm
+            spec = dataclasses.replace(
+                spec, solver=dataclasses.replace(spec.solver, predict_contact_below_mm=below)
+            )
+        out.append(spec)
     return out

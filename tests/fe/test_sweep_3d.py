@@ -13,6 +13,8 @@ import pandas as pd
 import pytest
 
 from grasprom.cli import main
+from grasprom.fe.grid import build_grid
+from grasprom.fe.grid3d import Model3DOptions, to_3d
 from grasprom.fe.model2d import CONTRACT_COLUMNS
 
 COARSE = ["--n-layers", "1", "--n-circ", "8", "--tube-length", "30", "--closed-gap", "27"]
@@ -69,6 +71,29 @@ def test_3d_sweep_takes_the_graded_mesh_options(tmp_path):
     assert mesh["n_layers"] == 2 and mesh["n_circ"] == 8
 
 
+def test_3d_sweep_takes_the_axial_mesh_and_predicted_contact_options(tmp_path):
+    """``--n-jaw`` / ``--n-free`` reach the 3D mesh and ``--predict-contact-below`` (in wall
+    thicknesses) the solver, as a gap in mm per case; the sidecar records both (the converged
+    mesh of docs/fe-model.md runs from the command line)."""
+    out = tmp_path / "axial"
+    axial = ["--n-jaw", "2", "--n-free", "3", "--predict-contact-below", "2.5"]
+    assert _sweep(out, "--model", "3d", *COARSE, *axial) == 0
+    meta = json.loads((out / "mr_t1.40.json").read_text())
+    assert meta["mesh"]["n_jaw"] == 2 and meta["mesh"]["n_free"] == 3
+    assert meta["solver"]["predict_contact_below_mm"] == pytest.approx(3.5)
+    assert meta["status"] == "complete"
+    # one multiple serves a thickness sweep: each case's gap is the multiple times its t
+    specs = build_grid("0.8,2.0", "mr,le")
+    opts = Model3DOptions(n_free=6, predict_contact_below_t=2.5)
+    cases = to_3d(specs, opts, {"n_layers": 4})
+    for c in cases:
+        assert c.solver.predict_contact_below_mm == pytest.approx(2.5 * c.thickness_mm)
+        assert c.mesh.n_free == 6 and c.mesh.n_layers == 4 and c.mesh.n_jaw == 4
+    # not given: predicted contact stays off, the mesh default
+    (plain,) = to_3d(build_grid("1.4", "mr"), Model3DOptions(), {})
+    assert plain.solver.predict_contact_below_mm == 0.0 and plain.mesh.n_free == 9
+
+
 def test_2d_sweep_with_stick_contact_records_it(tmp_path):
     out = tmp_path / "stick2d"
     assert _sweep(out, "--contact", "stick", "--closed-gap", "20") == 0
@@ -110,6 +135,12 @@ def test_3d_sweep_with_coulomb_contact_records_the_coefficient(tmp_path):
         (["--model", "3d", "--friction", "0.3"], "--friction"),
         (["--model", "3d", "--tube-length", "-5"], "--tube-length"),
         (["--model", "3d", "--n-circ", "4"], "--n-circ"),
+        (["--n-free", "3"], "--n-free: only with --model 3d"),
+        (["--n-jaw", "2", "--predict-contact-below", "2"], "--n-jaw, --predict-contact-below"),
+        (["--model", "3d", "--n-jaw", "0"], "--n-jaw: must be an integer >= 1"),
+        (["--model", "3d", "--n-free", "-1"], "--n-free: must be an integer >= 0"),
+        (["--model", "3d", "--predict-contact-below", "0"], "--predict-contact-below"),
+        (["--model", "3d", "--predict-contact-below", "nan"], "--predict-contact-below"),
     ],
 )
 def test_3d_options_that_do_not_fit_are_clear_errors(tmp_path, capsys, extra, needle):
