@@ -23,6 +23,8 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py wallsmeet     # 4 x 36, 240 mm: contact predicted or not (~1.5h)
     python benchmarks/bench_fe3d.py activeset     # 4 x 36, 240 mm: active-set tolerance (~40 min)
     python benchmarks/bench_fe3d.py activeset --closed-gap 12   # its bending part (~4 min)
+    python benchmarks/bench_fe3d.py reuse         # 4 x 36, 240 mm: predictor factor reuse, bending
+    python benchmarks/bench_fe3d.py reuse --closed-gap 1.5      # the whole stroke (~30 min)
 
 Forces in N, gaps in mm.  t = 1.4 mm, Mooney-Rivlin, unless stated.  Timings are wall-clock on
 whatever machine runs this (noisy when shared).
@@ -826,6 +828,50 @@ def bench_activeset(closed_gap: float = 1.5) -> dict:
     return out
 
 
+def bench_reuse(closed_gap: float = 12.0) -> dict:
+    """The tangent predictor solving with the last Newton factor
+    (``model3d.PREDICTOR_REUSES_FACTOR``) against factoring its own tangent (before), on the
+    converged cross-section (4 x 36 graded 8:1, six axial divisions beyond the jaw, 240 mm
+    tube, mr, t = 1.4, stick) from first touch to ``closed_gap`` (mm; default 12, the bending
+    part, ~4 min for both; 1.5 runs to the force cap with contact predicted below gap 3.5 mm,
+    ~30 min): wall time, factorisations, Newton iterations, forces at fixed gaps, ratios."""
+    from grasprom.fe import model3d
+
+    base = _base(closed_gap_mm=closed_gap)
+    spec = replace(base, mesh=replace(base.mesh, **LAYER_MESHES["4 x 36"], n_free=6))
+    gaps = tuple(g for g in (20.0, 15.0) + LAYER_GAPS if g > closed_gap)
+    gaps += (closed_gap,) if closed_gap > 2.5 else ()  # a short stroke ends on its closed gap
+    spec = _with_gaps(
+        replace(spec, solver=replace(spec.solver, predict_contact_below_mm=3.5)), gaps
+    )
+    current = model3d.PREDICTOR_REUSES_FACTOR
+    out = {}
+    _header(gaps)
+    for label, reuse in (("before", False), ("current", True)):
+        model3d.PREDICTOR_REUSES_FACTOR = reuse
+        try:
+            t0 = time.perf_counter()
+            r = _run(spec, f"predictor reuses the Newton factor: {reuse}")
+            wall = time.perf_counter() - t0
+        finally:
+            model3d.PREDICTOR_REUSES_FACTOR = current
+        force = _force_at(r.table, gaps)
+        _print_row(f"{label} (N)", force)
+        out[label] = {"wall_s": wall, "steps": r.info["steps"], "force_N": force}
+        out[label] |= {k: r.info[k] for k in ("newton_iterations", "factorizations")}
+    b, c = out["before"], out["current"]
+    _print_row("current vs before (%)", {g: 100.0 * (c["force_N"][g] / b["force_N"][g] - 1.0)
+                                          for g in gaps}, "{:+9.4f}")  # fmt: skip
+    out["ratio"] = {k: b[k] / c[k] for k in ("wall_s", "factorizations", "newton_iterations")}
+    print(
+        f"  before/current: wall {out['ratio']['wall_s']:.2f} x, factorisations "
+        f"{b['factorizations']} / {c['factorizations']} = {out['ratio']['factorizations']:.2f} x,"
+        f" Newton iterations {b['newton_iterations']} / {c['newton_iterations']}",
+        flush=True,
+    )
+    return out
+
+
 SECTIONS = {
     "shell": bench_shell,
     "default": bench_default,
@@ -846,6 +892,7 @@ SECTIONS = {
     "ccx": bench_ccx,
     "wallsmeet": bench_wallsmeet,
     "activeset": bench_activeset,
+    "reuse": bench_reuse,
 }
 
 
@@ -868,8 +915,9 @@ def main(argv: list[str]) -> None:
     ap.add_argument(
         "--closed-gap",
         type=float,
-        default=1.5,
-        help="'activeset' section: end of the stroke in mm (default 1.5: to the force cap)",
+        default=None,
+        help="'activeset' and 'reuse' sections: end of the stroke in mm (default 1.5, to the "
+        "force cap, for 'activeset'; 12, the bending part, for 'reuse')",
     )
     ap.add_argument("--json", help="write the figures as JSON here")
     args = ap.parse_args(argv)
@@ -884,7 +932,9 @@ def main(argv: list[str]) -> None:
             ts = tuple(float(x) for x in args.thickness.split(","))
             results[name] = bench_cases(ts, mats)
         elif name == "activeset":
-            results[name] = bench_activeset(args.closed_gap)
+            results[name] = bench_activeset(args.closed_gap or 1.5)
+        elif name == "reuse":
+            results[name] = bench_reuse(args.closed_gap or 12.0)
         else:
             results[name] = SECTIONS[name]()
     text = json.dumps(results, default=str)

@@ -2,7 +2,8 @@
 
 Two back ends, both direct:
 
-- :func:`solve_symmetric`: scipy's SuperLU in symmetric mode (always available);
+- :func:`solve_symmetric` / :class:`SuperLUSolver`: scipy's SuperLU in symmetric mode (always
+  available);
 - :class:`PardisoLDLT`: Intel MKL PARDISO's symmetric indefinite ``L D L^T`` (matrix type -2)
   on the upper triangle, with the fill-reducing analysis (METIS) kept while the sparsity pattern
   does not change (needs the optional ``pypardiso``, which brings MKL: ``pip install
@@ -55,13 +56,44 @@ def solve_symmetric(K: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
     RuntimeError
         The factor is exactly singular.
     """
-    lu = spla.splu(
+    return _splu(K).solve(np.asarray(rhs, dtype=float))
+
+
+def _splu(K: sp.spmatrix):
+    """SuperLU factor of ``K``: minimum degree on ``K^T + K``, symmetric mode."""
+    return spla.splu(
         sp.csc_matrix(K),
         permc_spec="MMD_AT_PLUS_A",
         diag_pivot_thresh=DIAG_PIVOT_THRESHOLD,
         options={"SymmetricMode": True},
     )
-    return lu.solve(np.asarray(rhs, dtype=float))
+
+
+class SuperLUSolver:
+    """:func:`solve_symmetric` that keeps its last factorisation for :meth:`resolve` (the
+    protocol :class:`PardisoLDLT` follows too: ``solver(K, rhs)`` factors and solves,
+    ``solver.resolve(rhs)`` solves again with that factor, ``solver.factorizations`` counts)."""
+
+    name = "scipy SuperLU (MMD_AT_PLUS_A, symmetric mode)"
+    """For sidecars (:func:`solver_name`)."""
+
+    def __init__(self) -> None:
+        self._lu = None
+        self.factorizations = 0
+        """Numerical factorisations done (one per call)."""
+
+    def __call__(self, K: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
+        """Factor ``K`` and solve ``K x = rhs`` (as :func:`solve_symmetric`)."""
+        self._lu = None
+        self._lu = _splu(K)
+        self.factorizations += 1
+        return self._lu.solve(np.asarray(rhs, dtype=float))
+
+    def resolve(self, rhs: np.ndarray) -> np.ndarray:
+        """Solve with the last factorisation; RuntimeError if there is none."""
+        if self._lu is None:
+            raise RuntimeError("SuperLU: nothing factored to solve with")
+        return self._lu.solve(np.asarray(rhs, dtype=float))
 
 
 def descent_direction(
@@ -206,6 +238,9 @@ class PardisoLDLT:
         """For sidecars (:func:`solver_name`; the name without the suffix had them on)."""
         self.analyses = 0
         """Symbolic analyses done (a new sparsity pattern each)."""
+        self.factorizations = 0
+        """Numerical factorisations done (one per call)."""
+        self._factored: np.ndarray | None = None  # upper-triangle values of the last factor
 
     def _call(self, phase: int, a: np.ndarray, b: np.ndarray, x: np.ndarray) -> None:
         indptr, indices, _ = self._upper
@@ -273,12 +308,36 @@ class PardisoLDLT:
                 self._call(11, a, b, x)
                 self._analysed = True
                 self.analyses += 1
+            self._factored = None
             self._call(23, a, b, x)
+            self._factored = a
+            self.factorizations += 1
+        finally:
+            self._set_threads(previous)
+        return x
+
+    def resolve(self, rhs: np.ndarray) -> np.ndarray:
+        """Solve with the last factorisation (no new one): ``K x = rhs`` for the ``K`` of the
+        last call, at the cost of the triangular solves (PARDISO phase 33).
+
+        Raises
+        ------
+        RuntimeError
+            Nothing factored yet, or PARDISO reports an error.
+        """
+        if self._factored is None:
+            raise RuntimeError("PARDISO: nothing factored to solve with")
+        b = np.array(rhs, dtype=float, copy=True)
+        x = np.zeros_like(b)
+        previous = self._set_threads(self.threads)
+        try:
+            self._call(33, self._factored, b, x)
         finally:
             self._set_threads(previous)
         return x
 
     def _release(self) -> None:
+        self._factored = None
         if self._analysed and self._upper is not None:
             z = np.zeros(1)
             self._call(-1, z, z, z)
@@ -303,7 +362,9 @@ def make_solver(name: str = "auto") -> Callable[[sp.spmatrix, np.ndarray], np.nd
     Returns
     -------
     callable
-        The solver; PARDISO's keeps its analysis between calls, so make one per run.
+        The solver (:class:`SuperLUSolver` or :class:`PardisoLDLT`): ``solver(K, rhs)`` factors
+        and solves, ``solver.resolve(rhs)`` solves again with the last factor; each keeps its
+        factor (PARDISO also its analysis) between calls, so make one per run.
 
     Raises
     ------
@@ -315,13 +376,13 @@ def make_solver(name: str = "auto") -> Callable[[sp.spmatrix, np.ndarray], np.nd
     if name not in SOLVERS:
         raise ValueError(f"linear solver must be one of {SOLVERS}, got {name!r}")
     if name == "superlu":
-        return solve_symmetric
+        return SuperLUSolver()
     try:
         return PardisoLDLT()
     except (ImportError, OSError, AttributeError):
         if name == "pardiso":
             raise
-        return solve_symmetric
+        return SuperLUSolver()
 
 
 def solver_name(solve: Callable) -> str:

@@ -365,9 +365,41 @@ class _Contact:
         )
 
 
+#: The tangent predictor of an active-set pass solves with the factor of the last Newton
+#: iteration instead of factoring its own tangent, where that factor belongs to the tangent the
+#: predictor starts from (the state Newton converged to, one iteration on) and to the same
+#: constraints: the first pass of a step whose contact set is the last step's.  Newton corrects
+#: the difference; the converged states are the same to ``SolverSettings.rtol``.
+#: ``python benchmarks/bench_fe3d.py reuse`` runs both.
+PREDICTOR_REUSES_FACTOR = True
+
+
+@dataclass
+class _FactorMemo:
+    """What the solver's last factorisation is (internal): the constrained Newton tangent of
+    the state before the one :func:`_newton` returned with ``K`` (identity), with the fixed
+    dofs ``mask``; valid while the solver's factorisation count is still ``count``."""
+
+    K: object = None
+    mask: np.ndarray | None = None
+    count: int = -1
+
+    def record(self, solver, K, mask: np.ndarray) -> None:
+        self.K, self.mask, self.count = K, mask, getattr(solver, "factorizations", -2)
+
+    def fits(self, solver, K, mask: np.ndarray) -> bool:
+        """Whether ``solver``'s last factor serves the predictor of ``K`` with ``mask``."""
+        return (
+            PREDICTOR_REUSES_FACTOR
+            and self.K is K
+            and getattr(solver, "factorizations", -3) == self.count
+            and np.array_equal(mask, self.mask)
+        )
+
+
 @dataclass(frozen=True)
 class _Setup:
-    """Everything fixed during a case (internal)."""
+    """Everything fixed during a case (internal; ``factor`` is the solver's state)."""
 
     disc: Disc3D
     material: Material
@@ -379,6 +411,7 @@ class _Setup:
     solver: Callable[[sp.spmatrix, np.ndarray], np.ndarray]  # linsolve.make_solver
     disc_thickness: float
     mu: float = np.inf  # Coulomb coefficient (finite: contact="coulomb")
+    factor: _FactorMemo = field(default_factory=_FactorMemo)
 
 
 @dataclass(frozen=True)
@@ -822,9 +855,11 @@ def _newton(
         if it > n_max:
             break
         Kr = fr_.tangent(K, f, st.jaw.r)
+        count = getattr(st.solver, "factorizations", 0)
         dv = descent_direction(st.solver, _constrained(st, Kr, fr_.fixed, fr_.Q is not None), r)
         if dv is None:
             raise _NewtonFailure("no descent direction")
+        plain = fr_.Q is None and getattr(st.solver, "factorizations", 0) == count + 1
         dv[fr_.fixed] = 0.0
         du = dv if fr_.Q is None else fr_.Q @ dv
         amax = _feasible_alpha(st, c, u, du, cons, h)
@@ -839,16 +874,22 @@ def _newton(
         f, K = _assemble_x(st, u, fric)
         if f is None:
             raise _NewtonFailure("inverted element")
+        if plain and fric is None:  # the factor is of this K one iteration back
+            st.factor.record(st.solver, K, fr_.fixed)
         if event:
             return u, internal(f, u), K, it, True, probe
     raise _NewtonFailure("Newton did not converge")
 
 
 def _predict(st: _Setup, u, K, fixed, jump):
-    """Tangent predictor: the free dofs follow a prescribed jump to first order."""
+    """Tangent predictor: the free dofs follow a prescribed jump to first order (with the
+    last Newton factor where it fits, :data:`PREDICTOR_REUSES_FACTOR`)."""
     mask = fixed | (jump != 0.0)
     rhs = np.where(mask, 0.0, -(K @ jump))
-    du = st.solver(_constrained(st, K, mask, False), rhs)
+    if st.factor.fits(st.solver, K, mask):
+        du = st.solver.resolve(rhs)
+    else:
+        du = st.solver(_constrained(st, K, mask, False), rhs)
     if np.all(np.isfinite(du)):
         up = u + np.where(mask, 0.0, du) + jump
         if np.isfinite(energy(st.disc, st.material, up)):
@@ -1369,6 +1410,7 @@ def _info(spec, st: _Setup, table, reason, total_newton, n_fail, fail_log, h, t0
         "status_reason": reason,
         "steps": len(table) - 1,
         "newton_iterations": int(total_newton),
+        "factorizations": int(getattr(st.solver, "factorizations", -1)),
         "failures": n_fail,
         "failure_log": fail_log[-20:],
         "last_gap_mm": float(2 * h),

@@ -79,10 +79,40 @@ def test_pardiso_reuses_its_analysis_until_the_pattern_changes():
     assert solve.analyses == 2
 
 
-def test_make_solver_names():
-    from grasprom.fe.linsolve import PardisoLDLT, make_solver, pardiso_available
+@pytest.mark.parametrize("name", ["superlu", "pardiso"])
+def test_resolve_solves_with_the_last_factor(name):
+    """``solver.resolve(rhs)`` solves with the matrix of the last call, not a new one, and
+    agrees with LAPACK for that matrix to 1e-10 (SPD and indefinite); it counts no
+    factorisation; before any call it raises."""
+    from grasprom.fe.linsolve import SuperLUSolver
 
-    assert make_solver("superlu") is solve_symmetric
+    solve = SuperLUSolver() if name == "superlu" else _pardiso()
+    rng = np.random.default_rng(7)
+    with pytest.raises(RuntimeError, match="nothing factored"):
+        solve.resolve(np.ones(225))
+    for shift in (0.0, -1.5):
+        K = _laplacian_2d(15) + shift * sp.identity(225, format="csr")
+        solve(K, rng.standard_normal(225))
+        n = solve.factorizations
+        rhs = rng.standard_normal(225)
+        x = solve.resolve(rhs)
+        ref = np.linalg.solve(K.toarray(), rhs)
+        assert np.abs(x - ref).max() <= 1e-10 * np.abs(ref).max()
+        assert solve.factorizations == n
+    assert solve.factorizations == 2
+
+
+def test_make_solver_names():
+    from grasprom.fe.linsolve import (
+        PardisoLDLT,
+        SuperLUSolver,
+        make_solver,
+        pardiso_available,
+        solver_name,
+    )
+
+    assert isinstance(make_solver("superlu"), SuperLUSolver)
+    assert solver_name(make_solver("superlu")).startswith("scipy SuperLU")
     assert isinstance(make_solver("auto"), PardisoLDLT) == pardiso_available()
     with pytest.raises(ValueError, match="superlu"):
         make_solver("umfpack")

@@ -408,6 +408,32 @@ def test_inexact_active_set_passes_reach_the_same_frictionless_equilibrium(monke
     assert inexact.info["newton_iterations"] < exact.info["newton_iterations"]
 
 
+@pytest.mark.parametrize("contact, rel", [("frictionless", 1e-7), ("stick", 1e-5)])
+def test_predictor_with_the_last_newton_factor_reaches_the_same_equilibrium(
+    monkeypatch, contact, rel
+):
+    """The tangent predictor solving with the last Newton factor (one iteration old) instead of
+    factoring its own tangent: the same steps and forces (frictionless to 1e-7, as it has no
+    path dependence; stick within 1e-5, its anchors follow the loose passes), with fewer
+    factorisations (each counted by the solver)."""
+    from grasprom.fe import model3d
+
+    gaps = (25.0, 20.0)
+    spec = CaseSpec3D(
+        "mr", 1.4, tube_length_mm=30.0, contact=contact, closed_gap_mm=20.0, mesh=COARSE
+    )
+    spec = replace(spec, solver=replace(spec.solver, land_on_gaps_mm=gaps))
+    reused = run_case_3d(spec)
+    monkeypatch.setattr(model3d, "PREDICTOR_REUSES_FACTOR", False)
+    own = run_case_3d(spec)
+    assert len(reused.table) == len(own.table)
+    for g in gaps:
+        assert _at(reused.table, g) == pytest.approx(_at(own.table, g), rel=rel)
+    n_reused, n_own = reused.info["factorizations"], own.info["factorizations"]
+    assert 0 < n_reused < n_own
+    assert n_own >= own.info["newton_iterations"]  # a factorisation per Newton iteration at least
+
+
 def test_coulomb_3d_spans_frictionless_to_stick():
     """Coulomb contact in 3D, bracketed by its limits (as the 2D model's checks).
 
