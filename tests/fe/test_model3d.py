@@ -607,10 +607,11 @@ def test_3d_crease_is_placed_where_the_work_balances_the_strain_energy():
     normal, nothing dissipates, so the jaw's work equals the strain energy on an equilibrium
     path).  Followed without the rule, the smooth fold snaps to the creased state inside the
     band 2t..4t and releases energy: the work (trapezoid rule over the rows) then exceeds the
-    final strain energy by more than 0.5 % (measured 1.39 %) beyond the quadrature error it had
-    before the band.  With the rule the force drops at a larger gap and the balance stays at
-    that error within 0.3 % (measured -0.08 %): the crease is where the two states' energies
-    are equal.  Both end in the same state.
+    final strain energy by more than 0.5 % (measured 0.91 %) beyond the quadrature error it had
+    before the band.  With the rule the creased state takes over at a larger gap (the first
+    row where the two runs' tables part) and the balance stays at that error within 0.3 %
+    (measured -0.20 %): the crease is where the two states' energies are equal.  Both end in
+    the same state.
 
     The snap here is the pure mixed element's (``beta = 0``) spurious fold mode (``bench_fe3d.py
     element``: in plane strain it loses a third of the force): a snap this coarse mesh shows,
@@ -618,6 +619,11 @@ def test_3d_crease_is_placed_where_the_work_balances_the_strain_energy():
     snap before gap 4.2 mm on this tube (work and energy then agree within 0.6 %).  The
     path through a spurious snap is sensitive to round-off: with the uniform layers computed
     another way (equal to 1e-15 mm) it snapped at 5.20 mm and the rule placed it at 5.06 mm.
+    With the predictor on the last Newton factor (round-off again) the plain run snaps at
+    5.13 mm and the rule's creased state takes over at 5.55 mm (1.206 N, below the smooth
+    fold there but above its last row, 1.198 N at 5.90 mm), so the first force drop between
+    rows (5.09 mm, within the creased branch) is not where the crease was placed; the test
+    reads the placement off where the two tables part.
     """
     t = 1.4
     mesh = MeshSpec3D(n_layers=2, n_circ=12, n_jaw=3, n_free=2, beta=0.0)
@@ -633,17 +639,22 @@ def test_3d_crease_is_placed_where_the_work_balances_the_strain_energy():
 
         r = run_case_3d(spec, on_step=keep)
         assert r.status == "complete"
-        g, f = r.table["gap_mm"].to_numpy(), r.table["force_N"].to_numpy()
+        g = r.table["gap_mm"].to_numpy()
         work = trapezoid_work(r.table) / 8.0  # N mm, the 1/8 model
         before = max(k for k in range(len(g)) if g[k] > 4 * t and g[k] in energies)
-        drops = [k for k in range(1, len(f)) if f[k] < f[k - 1] * (1 - 1e-4)]
-        assert drops
         excess_before = work[before] / energies[g[before]] - 1
         excess_end = work[-1] / energies[g[-1]] - 1
-        out[maxwell] = (g[drops[0]], excess_end - excess_before, energies[g[-1]])
-    (snap, jump0, e0), (placed, jump1, e1) = out[False], out[True]
+        out[maxwell] = (r.table, excess_end - excess_before, energies[g[-1]])
+    (plain, jump0, e0), (ruled, jump1, e1) = out[False], out[True]
+    f = plain["force_N"].to_numpy()
+    snap = plain["gap_mm"].iloc[next(k for k in range(1, len(f)) if f[k] < f[k - 1] * (1 - 1e-4))]
+    # the crease as placed: the first row (from the top) where the two runs part
+    n = min(len(plain), len(ruled))
+    same = np.isclose(plain["gap_mm"][:n], ruled["gap_mm"][:n], rtol=0, atol=1e-12)
+    same &= np.isclose(plain["force_N"][:n], ruled["force_N"][:n], rtol=1e-9, atol=0)
+    placed = ruled["gap_mm"].iloc[int(np.argmin(same))]
     assert 2 * t < snap < placed <= 4 * t + 1e-9
-    assert jump0 > 0.005  # the snap's released energy (measured 1.39 %), still in the work
+    assert jump0 > 0.005  # the snap's released energy (measured 0.91 %), still in the work
     assert abs(jump1) < 0.003
     assert e1 == pytest.approx(e0, rel=1e-3)
 
