@@ -81,3 +81,32 @@ def test_a_snap_shows_as_released_energy_even_when_the_force_rises():
     assert not is_snap(prev, entry(3.9, de=-0.01 * work))  # trapezoid-size noise: no snap
     assert is_snap(prev, entry(3.9, df=-0.2 * cur[2] - prev[2] + cur[2]))  # force dropped
     assert not is_snap(entry(10.0), entry(10.0))  # no travel, no work
+
+
+def test_crease_onset_halves_a_failing_back_step_and_stops_where_the_branch_ends():
+    """The analytic branches above, with a solver that fails on back steps longer than 0.02
+    from h = 2.0 on (a stiff stretch, as a creased fold near its onset), and a creased branch
+    that may end at ``h_end`` (no solution above).  Without halvings the continuation stops at
+    the first long step (h = 2.0), 0.29 below the energy crossing h*; with three it reaches h*
+    (bisected to the step / 2^10), and where the branch ends below h* it stops within an
+    eighth of the step of that end."""
+    h_star = 3.0 - (-0.2 + np.sqrt(0.04 + 4 * 0.4 * 0.4)) / (2 * 0.4)
+
+    def below(state, h):
+        return 0.6 * (3.0 - state) ** 2 + 0.2 * (state - 1.0) < (3.0 - h) ** 2
+
+    def solver(h_end):
+        def solve(state, h):
+            if h > h_end or (h > 2.0 + 1e-9 and h - state > 0.02 + 1e-12):
+                raise ArithmeticError("no convergence")
+            return h, 1
+
+        return solve
+
+    dh = 0.05
+    plain = crease_onset(solver(9.0), below, 1.5, 1.5, dh, h_top=2.8)
+    assert plain.states[0][0] == pytest.approx(2.0)
+    halved = crease_onset(solver(9.0), below, 1.5, 1.5, dh, h_top=2.8, n_halve=3)
+    assert halved.states[0][0] == pytest.approx(h_star, abs=dh / 2**10)
+    ended = crease_onset(solver(2.1), below, 1.5, 1.5, dh, h_top=2.8, n_halve=3)
+    assert 2.1 - dh / 8 <= ended.states[0][0] <= 2.1
