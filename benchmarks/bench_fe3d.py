@@ -784,6 +784,19 @@ def bench_wallsmeet(switch_gap: float = 3.5, budget_factor: float = 2.0) -> dict
 ACTIVE_SET_RTOL_BEFORE = 1e-4
 
 
+def _converged_case(closed_gap: float) -> tuple[CaseSpec3D, tuple[float, ...]]:
+    """The converged cross-section's case (4 x 36 graded 8:1, six axial divisions beyond the
+    jaw, 240 mm tube, mr, t = 1.4, stick, contact predicted below gap 3.5 mm) to
+    ``closed_gap`` (mm), landing on the gaps it returns (a short stroke ends on its closed
+    gap)."""
+    base = _base(closed_gap_mm=closed_gap)
+    spec = replace(base, mesh=replace(base.mesh, **LAYER_MESHES["4 x 36"], n_free=6))
+    gaps = tuple(g for g in (20.0, 15.0) + LAYER_GAPS if g > closed_gap)
+    gaps += (closed_gap,) if closed_gap > 2.5 else ()
+    spec = replace(spec, solver=replace(spec.solver, predict_contact_below_mm=3.5))
+    return _with_gaps(spec, gaps), gaps
+
+
 def bench_activeset(closed_gap: float = 1.5) -> dict:
     """Active-set passes solved to 1e-4 of the force scale (before) against the current
     ``model3d.ACTIVE_SET_RTOL``, on the converged cross-section (4 x 36 graded 8:1, six axial
@@ -793,14 +806,7 @@ def bench_activeset(closed_gap: float = 1.5) -> dict:
     (~40 min for the full stroke; ``closed_gap=12`` gives the bending part in ~4 min)."""
     from grasprom.fe import model3d
 
-    base = _base(closed_gap_mm=closed_gap)
-    mesh = replace(base.mesh, **LAYER_MESHES["4 x 36"], n_free=6)
-    spec = replace(base, mesh=mesh)
-    gaps = tuple(g for g in (20.0, 15.0) + LAYER_GAPS if g > closed_gap)
-    gaps += (closed_gap,) if closed_gap > 2.5 else ()  # a short stroke ends on its closed gap
-    spec = _with_gaps(
-        replace(spec, solver=replace(spec.solver, predict_contact_below_mm=3.5)), gaps
-    )
+    spec, gaps = _converged_case(closed_gap)
     current = model3d.ACTIVE_SET_RTOL
     out = {}
     _header(gaps)
@@ -837,13 +843,7 @@ def bench_reuse(closed_gap: float = 12.0) -> dict:
     ~30 min): wall time, factorisations, Newton iterations, forces at fixed gaps, ratios."""
     from grasprom.fe import model3d
 
-    base = _base(closed_gap_mm=closed_gap)
-    spec = replace(base, mesh=replace(base.mesh, **LAYER_MESHES["4 x 36"], n_free=6))
-    gaps = tuple(g for g in (20.0, 15.0) + LAYER_GAPS if g > closed_gap)
-    gaps += (closed_gap,) if closed_gap > 2.5 else ()  # a short stroke ends on its closed gap
-    spec = _with_gaps(
-        replace(spec, solver=replace(spec.solver, predict_contact_below_mm=3.5)), gaps
-    )
+    spec, gaps = _converged_case(closed_gap)
     current = model3d.PREDICTOR_REUSES_FACTOR
     out = {}
     _header(gaps)
