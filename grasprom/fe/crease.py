@@ -146,11 +146,10 @@ def crease_onset(
     n_bisect : int
         Bisections of the crossing.
     n_halve : int
-        A back step that fails is retried from the same state with half the step, up to this
-        many times, before the creased branch is taken to end there.  Without retries a
-        creased state still below the smooth branch in energy stops the continuation wherever
-        one back step of ``dh`` fails to converge (4 x 36 mesh, mr 1.4 mm: at gap 4.32 mm,
-        0.2 % below in energy), so the placement follows the solver's step, not the energies.
+        A failed back step is retried from the same state with half the step, up to this many
+        times, before the creased branch is taken to end there.  Without retries the first
+        failed step of ``dh`` stopped the continuation wherever the energies stood (4 x 36,
+        mr 1.4 mm: at gap 4.25 mm, 0.2 % below the smooth branch in energy).
 
     Returns
     -------
