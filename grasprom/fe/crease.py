@@ -121,6 +121,7 @@ def crease_onset(
     errors: tuple[type[BaseException], ...] = (ArithmeticError,),
     n_bisect: int = 10,
     n_halve: int = 0,
+    first_step: bool = False,
 ) -> CreaseOnset:
     """Continue a snapped (creased) state back to larger jaw heights while it stays below the
     smooth branch in energy; the crossing is the Maxwell point.
@@ -150,6 +151,10 @@ def crease_onset(
         times, before the creased branch is taken to end there.  Without retries the first
         failed step of ``dh`` stopped the continuation wherever the energies stood (4 x 36,
         mr 1.4 mm: at gap 4.25 mm, 0.2 % below the smooth branch in energy).
+    first_step : bool
+        Also bisect a crossing within the first back step, if the snapped state is below the
+        smooth branch (extrapolated) at ``h_snap``; otherwise a snap within one back step of
+        its Maxwell point is placed nowhere.
 
     Returns
     -------
@@ -168,28 +173,35 @@ def crease_onset(
         h_next, nxt, it = step
         spent_total += it
         if not below(nxt, h_next):
-            if not out:
-                break
-            lo, hi, lo_state, spent = h, h_next, cur, it  # bisect the crossing
-            for _ in range(n_bisect):
-                mid = 0.5 * (lo + hi)
-                try:
-                    sm, it = solve(lo_state, mid)
-                except errors:
-                    break
-                spent += it
-                spent_total += it
-                if below(sm, mid):
-                    lo, lo_state = mid, sm
-                else:
-                    hi = mid
-            if lo > h:
-                out.append((lo, lo_state, spent))
+            if out or (first_step and below(cur, h)):
+                crossing, spent = _bisect_crossing(solve, below, cur, h, h_next, errors, n_bisect)
+                spent_total += spent
+                if crossing[0] > h:
+                    out.append((*crossing, spent + it))
             break
         out.append((h_next, nxt, it))
         cur, h = nxt, h_next
     out.sort(key=lambda r: -r[0])
     return CreaseOnset(out, spent_total)
+
+
+def _bisect_crossing(solve, below, state, lo: float, hi: float, errors, n_bisect: int):
+    """Bisect the energy crossing between jaw heights ``lo`` (``state`` there, below the smooth
+    branch) and ``hi`` (above it), ``n_bisect`` times.  Returns ``((h, state), iterations)``:
+    the largest height found below, with its state, and the Newton iterations spent."""
+    spent = 0
+    for _ in range(n_bisect):
+        mid = 0.5 * (lo + hi)
+        try:
+            sm, it = solve(state, mid)
+        except errors:
+            break
+        spent += it
+        if below(sm, mid):
+            lo, state = mid, sm
+        else:
+            hi = mid
+    return (lo, state), spent
 
 
 def _back_step(solve, cur, h: float, dh: float, landing, errors, n_halve: int):

@@ -27,7 +27,7 @@ def test_hermite_energy_is_exact_for_a_cubic_and_uses_dE_dh_equal_minus_F():
 
 def test_crease_onset_finds_the_energy_crossing_of_two_analytic_branches():
     """Smooth branch E_s(h) = (3 - h)^2, creased branch E_c(h) = 0.6 (3 - h)^2 + 0.2 (h - 1): the
-    creased state is lower below h* = 2.2929 (E_s = E_c: 0.4 (3 - h)^2 = 0.2 (h - 1)), so from a
+    creased state is lower below h* = 2.2192 (E_s = E_c: 0.4 (3 - h)^2 = 0.2 (h - 1)), so from a
     snap at h = 1.5 the continuation must stop at h* (bisected to the back step / 2^10)."""
 
     def E_s(h):
@@ -110,3 +110,25 @@ def test_crease_onset_halves_a_failing_back_step_and_stops_where_the_branch_ends
     assert halved.states[0][0] == pytest.approx(h_star, abs=dh / 2**10)
     ended = crease_onset(solver(2.1), below, 1.5, 1.5, dh, h_top=2.8, n_halve=3)
     assert 2.1 - dh / 8 <= ended.states[0][0] <= 2.1
+
+
+def test_crease_onset_places_a_crossing_within_the_first_back_step_when_asked():
+    """A snap at h = 2.20, 0.019 below the energy crossing h* = 2.2192 of the analytic branches
+    above: the first back step (0.05) already lands above h*.  Without ``first_step`` nothing
+    is placed; with it the crossing is bisected (to the step / 2^10); a snapped state that is
+    not below the smooth branch still places nothing."""
+    h_star = 3.0 - (-0.2 + np.sqrt(0.04 + 4 * 0.4 * 0.4)) / (2 * 0.4)
+
+    def below(state, h):
+        return 0.6 * (3.0 - state) ** 2 + 0.2 * (state - 1.0) < (3.0 - h) ** 2
+
+    def solve(state, h):
+        return h, 1
+
+    dh = 0.05
+    assert crease_onset(solve, below, 2.20, 2.20, dh, h_top=2.8).states == []
+    placed = crease_onset(solve, below, 2.20, 2.20, dh, h_top=2.8, first_step=True)
+    assert placed.states[0][0] == pytest.approx(h_star, abs=dh / 2**10)
+    assert placed.states[0][0] <= h_star and len(placed.states) == 1
+    above = crease_onset(solve, lambda s, h: s < h - 0.01, 2.20, 2.20, dh, 2.8, first_step=True)
+    assert above.states == []
