@@ -25,6 +25,7 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py activeset --closed-gap 12   # its bending part (~4 min)
     python benchmarks/bench_fe3d.py reuse         # 4 x 36, 240 mm: predictor factor reuse, bending
     python benchmarks/bench_fe3d.py reuse --closed-gap 1.5      # the whole stroke (~30 min)
+    python benchmarks/bench_fe3d.py band          # 4 x 48 vs 4 x 36, 240 mm: crease band (~35 min)
 
 Forces in N, gaps in mm.  t = 1.4 mm, Mooney-Rivlin, unless stated.  Timings are wall-clock on
 whatever machine runs this (noisy when shared).
@@ -872,6 +873,65 @@ def bench_reuse(closed_gap: float = 12.0) -> dict:
     return out
 
 
+#: gaps (mm) of the 3D band study: bending, the crease band 2t..4t (t = 1.4 mm) and the walls
+#: meeting at 2t
+BAND_GAPS = (20.0, 10.0, 6.0, 5.5, 5.0, 4.8, 4.5, 4.3, 4.0, 3.8, 3.5, 3.2, 3.0, 2.9, 2.8)
+#: cross-sections of the 3D band study on the converged case, the reference first
+BAND_MESHES = {
+    "4 x 48": {"n_layers": 4, "n_circ": 48, "grading": 8.0},
+    "4 x 36": {"n_layers": 4, "n_circ": 36, "grading": 8.0},
+}
+
+
+def _dense_band(table, grid: np.ndarray) -> np.ndarray:
+    """Force (N) of ``table`` at the gaps ``grid`` (mm), log-interpolated between its steps."""
+    logf = np.log(np.maximum(table["force_N"].to_numpy(), 1e-12))
+    return np.exp(np.interp(-grid, -table["gap_mm"].to_numpy(), logf))
+
+
+def bench_band(meshes=BAND_MESHES, gaps=BAND_GAPS) -> dict:
+    """Crease band of the converged case (240 mm tube, six axial divisions beyond the jaw, mr,
+    t = 1.4, stick, contact predicted below gap 3.5 mm) on 4 x 48 and 4 x 36 to gap 2.8 mm:
+    force at fixed gaps, dense over the band 2t..4t (400 gaps, log-interpolated between the
+    steps), strain energy, cost (~35 min)."""
+    base, _ = _converged_case(2.8)
+    grid = np.linspace(2 * T + 0.02, 4 * T, 400)
+    out, dense = {}, {}
+    for label, mk in meshes.items():
+        spec = _with_gaps(replace(base, mesh=replace(base.mesh, **mk)), gaps)
+        r = _run(spec, label)
+        tb = r.table
+        dense[label] = _dense_band(tb, grid)
+        out[label] = {"force_N": _force_at(tb, gaps), "dofs": r.info["dofs"]}
+        out[label] |= {k: r.info[k] for k in ("steps", "newton_iterations", "factorizations")}
+        out[label] |= {"wall_s": r.info["wall_time_s"]}
+        out[label]["energy_2t_mJ"] = float(tb["strain_energy_mJ"].iloc[-1])
+    ref = next(iter(meshes))
+    _header(gaps)
+    for label, v in out.items():
+        _print_row(label, v["force_N"], "{:9.3f}")
+    for label, v in out.items():
+        rel = {g: 100.0 * (v["force_N"][g] / out[ref]["force_N"][g] - 1.0) for g in gaps}
+        _print_row(f"{label} / {ref} - 1 (%)", rel, "{:+9.2f}")
+        d = dense[label] / dense[ref] - 1.0
+        k = int(np.argmax(np.abs(d)))
+        v["band"] = {"max": float(np.abs(d).max()), "at_gap_mm": float(grid[k])}
+        v["band"] |= {
+            "median": float(np.median(np.abs(d))),
+            "beyond_3pct": float((abs(d) > 0.03).mean()),
+        }
+        e = 100.0 * (v["energy_2t_mJ"] / out[ref]["energy_2t_mJ"] - 1.0)
+        print(
+            f"  {label}: {v['dofs']} dofs, {v['steps']} steps, {v['newton_iterations']} Newton, "
+            f"{v['factorizations']} factorisations, {v['wall_s']:.0f} s; energy at 2t "
+            f"{v['energy_2t_mJ']:.3f} mJ ({e:+.2f} %); dense band vs {ref}: max "
+            f"{v['band']['max']:.1%} at gap {v['band']['at_gap_mm']:.2f} mm, median "
+            f"{v['band']['median']:.2%}, beyond 3 %: {v['band']['beyond_3pct']:.0%}",
+            flush=True,
+        )
+    return out
+
+
 SECTIONS = {
     "shell": bench_shell,
     "default": bench_default,
@@ -893,6 +953,7 @@ SECTIONS = {
     "wallsmeet": bench_wallsmeet,
     "activeset": bench_activeset,
     "reuse": bench_reuse,
+    "band": bench_band,
 }
 
 
