@@ -26,6 +26,7 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py reuse         # 4 x 36, 240 mm: predictor factor reuse, bending
     python benchmarks/bench_fe3d.py reuse --closed-gap 1.5      # the whole stroke (~30 min)
     python benchmarks/bench_fe3d.py band          # 4 x 48 vs 4 x 36, 240 mm: crease band (~35 min)
+    python benchmarks/bench_fe3d.py stall         # 4 x 36: budgeted solves stop when rising
 
 Forces in N, gaps in mm.  t = 1.4 mm, Mooney-Rivlin, unless stated.  Timings are wall-clock on
 whatever machine runs this (noisy when shared).
@@ -873,6 +874,38 @@ def bench_reuse(closed_gap: float = 12.0) -> dict:
     return out
 
 
+def bench_stall() -> dict:
+    """Budgeted solves that stop once their residual keeps rising (``model3d.STALL_RISES``)
+    against spending the whole budget (before), on the band study's 4 x 36 case (``band``):
+    wall time, factorisations, and whether the tables are equal (~30 min)."""
+    from grasprom.fe import model3d
+
+    base, _ = _converged_case(2.8)
+    spec = _with_gaps(replace(base, mesh=replace(base.mesh, **BAND_MESHES["4 x 36"])), BAND_GAPS)
+    current = model3d.STALL_RISES
+    out, tables = {}, {}
+    for label, rises in (("before", None), ("current", current)):
+        model3d.STALL_RISES = rises
+        try:
+            r = _run(spec, f"STALL_RISES {rises}")
+        finally:
+            model3d.STALL_RISES = current
+        tables[label] = r.table
+        out[label] = {k: r.info[k] for k in ("steps", "newton_iterations", "factorizations")}
+        out[label]["wall_s"] = r.info["wall_time_s"]
+    b, c = out["before"], out["current"]
+    same = tables["before"].equals(tables["current"])
+    out["ratio"] = {k: b[k] / c[k] for k in ("wall_s", "factorizations")}
+    out["tables_equal"] = same
+    print(
+        f"  before/current: wall {b['wall_s']:.0f} / {c['wall_s']:.0f} s = "
+        f"{out['ratio']['wall_s']:.2f} x, factorisations {b['factorizations']} / "
+        f"{c['factorizations']}; tables equal: {same}",
+        flush=True,
+    )
+    return out
+
+
 #: gaps (mm) of the 3D band study: bending, the crease band 2t..4t (t = 1.4 mm) and the walls
 #: meeting at 2t
 BAND_GAPS = (20.0, 10.0, 6.0, 5.5, 5.0, 4.8, 4.5, 4.3, 4.0, 3.8, 3.5, 3.2, 3.0, 2.9, 2.8)
@@ -954,6 +987,7 @@ SECTIONS = {
     "activeset": bench_activeset,
     "reuse": bench_reuse,
     "band": bench_band,
+    "stall": bench_stall,
 }
 
 

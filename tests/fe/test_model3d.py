@@ -564,6 +564,46 @@ def test_a_step_budget_caps_the_newton_iterations_over_all_passes():
         model3d._solve_step(st, u0, K0, c0, h, budget=it - 1)
 
 
+def test_a_budgeted_solve_stops_when_its_residual_keeps_rising(monkeypatch):
+    """A budgeted solve fails once the residual has risen ``STALL_RISES`` iterations in a row
+    (the failing back steps of the crease placement on 4 x 36 rose at every iteration until
+    their budget ran out); an unbudgeted one goes on to its iteration limit, and a budgeted one
+    whose residual falls returns the same state as without a budget."""
+    from grasprom.fe import model3d
+
+    spec = CaseSpec3D("mr", 1.4, tube_length_mm=30.0, mesh=COARSE)
+    st = model3d._setup(spec, "auto")
+    R, h = 15.0, 14.4
+    u0 = np.zeros(st.disc.ndof)
+    _, K0, _ = assemble(st.disc, st.material, u0)
+    c0 = model3d._initial_contact(st, R)
+    u, _, _, _, it = model3d._solve_step(st, u0, K0, c0, h)
+    ub, _, _, _, itb = model3d._solve_step(st, u0, K0, c0, h, budget=100)
+    assert itb == it and np.array_equal(ub, u)
+
+    seen = []
+    plain = model3d.SlidingFrame.residual
+
+    def rising(self, f):  # the true residual's direction, 10 % longer at every call (N)
+        seen.append(1)
+        r = plain(self, f)
+        return r / np.linalg.norm(r) * 1e-6 * 1.1 ** len(seen)  # N, above the tolerance
+
+    def full_step(st, u, du, *args, **kw):  # no line search on the made-up residual
+        return u + du, 1.0
+
+    monkeypatch.setattr(model3d.SlidingFrame, "residual", rising)
+    monkeypatch.setattr(model3d, "_line_search", full_step)
+    with pytest.raises(model3d._NewtonFailure, match="rose 6 iterations in a row"):
+        model3d._solve_step(st, u0, K0, c0, h, budget=100)
+    # six rises after the first residual of a pass (a pass cut at a contact event starts anew)
+    assert model3d.STALL_RISES + 1 <= len(seen) < 2 * model3d.STALL_RISES
+    seen.clear()
+    with pytest.raises(model3d._NewtonFailure, match="did not converge"):
+        model3d._solve_step(st, u0, K0, c0, h)
+    assert len(seen) > st.settings.max_newton
+
+
 def test_a_cut_newton_step_adds_the_nodes_its_full_step_would_push_through():
     """When a Newton step is cut at the first touch, the nodes the uncut step (the probe) would
     push into the floor or the jaw join the active set at once: exactly those, the jaw's at the
