@@ -543,19 +543,24 @@ def test_proximal_relaxation_lands_on_the_newton_equilibrium():
     assert jaw_force(relaxed) == pytest.approx(jaw_force(newton), rel=1e-7)
 
 
+def _first_touch_step():
+    """The coarse 30 mm tube at rest and its first step (jaw height 14.4 mm, touching):
+    ``(model3d, setup, u0, K0, contact0, h)``."""
+    from grasprom.fe import model3d
+
+    spec = CaseSpec3D("mr", 1.4, tube_length_mm=30.0, mesh=COARSE)
+    st = model3d._setup(spec, "auto")
+    u0 = np.zeros(st.disc.ndof)
+    _, K0, _ = assemble(st.disc, st.material, u0)
+    return model3d, st, u0, K0, model3d._initial_contact(st, 15.0), 14.4
+
+
 def test_a_step_budget_caps_the_newton_iterations_over_all_passes():
     """``_solve_step(..., budget=n)`` gives up after ``n`` Newton iterations summed over the
     active-set passes (the relaxation's plain attempts use it: a failing attempt at a snap cost
     about 70 s on 4 x 36, 240 mm tube), and with a budget it does not need returns exactly the
     unbudgeted state."""
-    from grasprom.fe import model3d
-
-    spec = CaseSpec3D("mr", 1.4, tube_length_mm=30.0, mesh=COARSE)
-    st = model3d._setup(spec, "auto")
-    R, h = 15.0, 14.4
-    u0 = np.zeros(st.disc.ndof)
-    _, K0, _ = assemble(st.disc, st.material, u0)
-    c0 = model3d._initial_contact(st, R)
+    model3d, st, u0, K0, c0, h = _first_touch_step()
     u, _, _, _, it = model3d._solve_step(st, u0, K0, c0, h)
     assert it >= 3
     ub, _, _, _, itb = model3d._solve_step(st, u0, K0, c0, h, budget=it)
@@ -569,14 +574,7 @@ def test_a_budgeted_solve_stops_when_its_residual_keeps_rising(monkeypatch):
     (the failing back steps of the crease placement on 4 x 36 rose at every iteration until
     their budget ran out); an unbudgeted one goes on to its iteration limit, and a budgeted one
     whose residual falls returns the same state as without a budget."""
-    from grasprom.fe import model3d
-
-    spec = CaseSpec3D("mr", 1.4, tube_length_mm=30.0, mesh=COARSE)
-    st = model3d._setup(spec, "auto")
-    R, h = 15.0, 14.4
-    u0 = np.zeros(st.disc.ndof)
-    _, K0, _ = assemble(st.disc, st.material, u0)
-    c0 = model3d._initial_contact(st, R)
+    model3d, st, u0, K0, c0, h = _first_touch_step()
     u, _, _, _, it = model3d._solve_step(st, u0, K0, c0, h)
     ub, _, _, _, itb = model3d._solve_step(st, u0, K0, c0, h, budget=100)
     assert itb == it and np.array_equal(ub, u)
