@@ -151,6 +151,12 @@ def bench_contact() -> dict:
     return {"stick": fs, "frictionless": ff, "2d": f2}
 
 
+def _dense_band(table, grid: np.ndarray) -> np.ndarray:
+    """Force (N) of ``table`` at the gaps ``grid`` (mm), log-interpolated between its steps."""
+    logf = np.log(np.maximum(table["force_N"].to_numpy(), 1e-12))
+    return np.exp(np.interp(-grid, -table["gap_mm"].to_numpy(), logf))
+
+
 def bench_crease(tube_length: float = 60.0) -> dict:
     """Crease band (2t..4t) of the 3D stick case: default steps vs small steps, dense, with and
     without the crease placed by energy (mr, t = 1.4, the default cross-section, 60 mm tube)."""
@@ -163,9 +169,7 @@ def bench_crease(tube_length: float = 60.0) -> dict:
         for label, kw in (("default steps", {}), ("small steps", small)):
             solver = replace(base.solver, maxwell_crease=maxwell, **kw)
             r = _run(replace(base, solver=solver), f"maxwell={maxwell} {label}")
-            t = r.table
-            logf = np.log(np.maximum(t["force_N"].to_numpy(), 1e-12))
-            curves[(maxwell, label)] = np.exp(np.interp(-grid, -t["gap_mm"].to_numpy(), logf))
+            curves[(maxwell, label)] = _dense_band(r.table, grid)
             out[f"maxwell={maxwell} {label} wall_s"] = r.info["wall_time_s"]
         rel = curves[(maxwell, "default steps")] / curves[(maxwell, "small steps")] - 1
         k = int(np.argmax(np.abs(rel)))
@@ -799,6 +803,25 @@ def _converged_case(closed_gap: float) -> tuple[CaseSpec3D, tuple[float, ...]]:
     return _with_gaps(spec, gaps), gaps
 
 
+def _before_and_current(spec: CaseSpec3D, name: str, before, label) -> dict:
+    """Run ``spec`` with the module constant ``model3d.<name>`` set to ``before``, then at its
+    current value (restored afterwards): ``{"before"|"current": (value, result, wall_s)}``;
+    ``label(value)`` names each run."""
+    from grasprom.fe import model3d
+
+    current = getattr(model3d, name)
+    out = {}
+    for key, value in (("before", before), ("current", current)):
+        setattr(model3d, name, value)
+        try:
+            t0 = time.perf_counter()
+            r = _run(spec, label(value))
+            out[key] = (value, r, time.perf_counter() - t0)
+        finally:
+            setattr(model3d, name, current)
+    return out
+
+
 def bench_activeset(closed_gap: float = 1.5) -> dict:
     """Active-set passes solved to 1e-4 of the force scale (before) against the current
     ``model3d.ACTIVE_SET_RTOL``, on the converged cross-section (4 x 36 graded 8:1, six axial
@@ -806,20 +829,13 @@ def bench_activeset(closed_gap: float = 1.5) -> dict:
     3.5 mm) from first touch to ``closed_gap`` (mm) or the force cap: wall time, steps, Newton
     iterations and the force at fixed gaps of each, the ratios and the force differences
     (~40 min for the full stroke; ``closed_gap=12`` gives the bending part in ~4 min)."""
-    from grasprom.fe import model3d
-
     spec, gaps = _converged_case(closed_gap)
-    current = model3d.ACTIVE_SET_RTOL
+    runs = _before_and_current(
+        spec, "ACTIVE_SET_RTOL", ACTIVE_SET_RTOL_BEFORE, lambda v: f"ACTIVE_SET_RTOL {v:g}"
+    )
     out = {}
     _header(gaps)
-    for label, rtol in (("before", ACTIVE_SET_RTOL_BEFORE), ("current", current)):
-        model3d.ACTIVE_SET_RTOL = rtol
-        try:
-            t0 = time.perf_counter()
-            r = _run(spec, f"ACTIVE_SET_RTOL {rtol:g}")
-            wall = time.perf_counter() - t0
-        finally:
-            model3d.ACTIVE_SET_RTOL = current
+    for label, (rtol, r, wall) in runs.items():
         force = _force_at(r.table, gaps)
         _print_row(f"{label} {rtol:g} (N)", force)
         out[label] = {"rtol": rtol, "wall_s": wall, "steps": r.info["steps"]}
@@ -847,16 +863,19 @@ def bench_reuse(closed_gap: float = 12.0) -> dict:
 
     spec, gaps = _converged_case(closed_gap)
     current = model3d.PREDICTOR_REUSES_FACTOR
+    model3d.PREDICTOR_REUSES_FACTOR = True  # "current": the reuse on (off by default)
+    try:
+        runs = _before_and_current(
+            spec,
+            "PREDICTOR_REUSES_FACTOR",
+            False,
+            lambda v: f"predictor reuses the Newton factor: {v}",
+        )
+    finally:
+        model3d.PREDICTOR_REUSES_FACTOR = current
     out = {}
     _header(gaps)
-    for label, reuse in (("before", False), ("current", True)):
-        model3d.PREDICTOR_REUSES_FACTOR = reuse
-        try:
-            t0 = time.perf_counter()
-            r = _run(spec, f"predictor reuses the Newton factor: {reuse}")
-            wall = time.perf_counter() - t0
-        finally:
-            model3d.PREDICTOR_REUSES_FACTOR = current
+    for label, (_, r, wall) in runs.items():
         force = _force_at(r.table, gaps)
         _print_row(f"{label} (N)", force)
         out[label] = {"wall_s": wall, "steps": r.info["steps"], "force_N": force}
@@ -878,23 +897,15 @@ def bench_stall() -> dict:
     """Budgeted solves that stop once their residual keeps rising (``model3d.STALL_RISES``)
     against spending the whole budget (before), on the band study's 4 x 36 case (``band``):
     wall time, factorisations, and whether the tables are equal (~30 min)."""
-    from grasprom.fe import model3d
-
     base, _ = _converged_case(2.8)
     spec = _with_gaps(replace(base, mesh=replace(base.mesh, **BAND_MESHES["4 x 36"])), BAND_GAPS)
-    current = model3d.STALL_RISES
-    out, tables = {}, {}
-    for label, rises in (("before", None), ("current", current)):
-        model3d.STALL_RISES = rises
-        try:
-            r = _run(spec, f"STALL_RISES {rises}")
-        finally:
-            model3d.STALL_RISES = current
-        tables[label] = r.table
+    runs = _before_and_current(spec, "STALL_RISES", None, lambda v: f"STALL_RISES {v}")
+    out = {}
+    for label, (_, r, wall) in runs.items():
         out[label] = {k: r.info[k] for k in ("steps", "newton_iterations", "factorizations")}
-        out[label]["wall_s"] = r.info["wall_time_s"]
+        out[label]["wall_s"] = wall
     b, c = out["before"], out["current"]
-    same = tables["before"].equals(tables["current"])
+    same = runs["before"][1].table.equals(runs["current"][1].table)
     out["ratio"] = {k: b[k] / c[k] for k in ("wall_s", "factorizations")}
     out["tables_equal"] = same
     print(
@@ -914,12 +925,6 @@ BAND_MESHES = {
     "4 x 48": {"n_layers": 4, "n_circ": 48, "grading": 8.0},
     "4 x 36": {"n_layers": 4, "n_circ": 36, "grading": 8.0},
 }
-
-
-def _dense_band(table, grid: np.ndarray) -> np.ndarray:
-    """Force (N) of ``table`` at the gaps ``grid`` (mm), log-interpolated between its steps."""
-    logf = np.log(np.maximum(table["force_N"].to_numpy(), 1e-12))
-    return np.exp(np.interp(-grid, -table["gap_mm"].to_numpy(), logf))
 
 
 def bench_band(meshes=BAND_MESHES, gaps=BAND_GAPS) -> dict:
