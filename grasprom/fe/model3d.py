@@ -1085,6 +1085,7 @@ def _solve_step(
     """
     iters = 0
     loose = max(ACTIVE_SET_RTOL, st.settings.rtol)
+    stall = None if budget is None else STALL_RISES
     exact = False
     coulomb = c.normal is not None  # Coulomb contact (:func:`_initial_contact`)
     last = None  # (u, f, K) of the last pass, to start the next one without reassembling
@@ -1099,7 +1100,6 @@ def _solve_step(
         cons = (fixed, values, fr)
         left = None if budget is None else min(st.settings.max_newton, budget - iters)
         tol = None if exact else loose
-        stall = None if budget is None else STALL_RISES
         u, f, K, it, event, probe = _newton(st, u, cons, h, c, tol, fric, last, left, stall)
         last = (u, f, K) if fric is None else None
         iters += it
