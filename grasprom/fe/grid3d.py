@@ -59,10 +59,11 @@ class Model3DOptions:
         Axial mesh divisions over the jaw (and its fine margin) and beyond it
         (:class:`~grasprom.fe.mesh3d.MeshSpec3D`).
     predict_contact_below_t : float or None
-        Predicted contact (experimental) below this jaw gap, in wall thicknesses: each case's
-        ``SolverSettings.predict_contact_below_mm`` is this times its thickness (mm), so one
-        value fits a thickness sweep (the converged 4 x 36 mesh needs it where the inner walls
-        close onto each other: 2.5 = gap 3.5 mm at t = 1.4 mm).
+        Predicted contact (experimental) below this jaw gap, in wall thicknesses
+        (``SolverSettings.predict_contact_below_t``: the gap is this times each case's
+        thickness, and the cases share one setting), so one value fits a thickness sweep (the
+        converged 4 x 36 mesh needs it where the inner walls close onto each other: 2.5 = gap
+        3.5 mm at t = 1.4 mm).
     """
 
     contact: str | None = None
@@ -199,10 +200,10 @@ def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, float])
             mesh=mesh3d,
             **extra,
         )
-        if below_t is not None:
-            below = float(below_t) * s.thickness_mm
+        if below_t is not None:  # in thicknesses, so that the cases share their settings
             spec = dataclasses.replace(
-                spec, solver=dataclasses.replace(spec.solver, predict_contact_below_mm=below)
+                spec,
+                solver=dataclasses.replace(spec.solver, predict_contact_below_t=float(below_t)),
             )
         out.append(spec)
     return out

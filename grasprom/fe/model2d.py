@@ -249,6 +249,11 @@ class SolverSettings:
         contact, :func:`grasprom.fe.model3d._update_active`), so a flat wall closing onto the
         floor enters the active set at once, not node by node.  0 (default) turns it off; on
         through the crease band it changes the path of the crease (docs/fe-model.md).
+    predict_contact_below_t : float
+        3D only, experimental: the same in wall thicknesses (predicted contact below a jaw gap
+        of this times the case's thickness); the larger of the two gaps counts.  One value
+        serves a thickness sweep (``grasprom sweep --predict-contact-below``), whose cases must
+        share their solver settings.
     """
 
     dh_initial_mm: float = 0.05
@@ -266,6 +271,7 @@ class SolverSettings:
     crease_step_fraction: float = 0.025
     maxwell_crease: bool = True
     predict_contact_below_mm: float = 0.0
+    predict_contact_below_t: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -1334,8 +1340,10 @@ def _validate_spec(spec: CaseSpec) -> None:
     if spec.contact not in CONTACTS_2D:
         raise ValueError(f"invalid contact={spec.contact!r}; valid: {', '.join(CONTACTS_2D)}")
     check_friction(spec.contact, spec.friction)
-    if spec.solver.predict_contact_below_mm != 0.0:
-        raise ValueError(
-            f"invalid solver.predict_contact_below_mm={spec.solver.predict_contact_below_mm!r}: "
-            "predicted contact is 3D only (--model 3d); the 2D model takes 0"
-        )
+    for name in ("predict_contact_below_mm", "predict_contact_below_t"):
+        value = getattr(spec.solver, name)
+        if value != 0.0:
+            raise ValueError(
+                f"invalid solver.{name}={value!r}: "
+                "predicted contact is 3D only (--model 3d); the 2D model takes 0"
+            )

@@ -792,13 +792,16 @@ def _feasible_alpha(st: _Setup, c: _Contact, u, du, cons, h) -> float:
 
 def _predicting(st: _Setup, h: float) -> bool:
     """Predicted contact at jaw height ``h`` (mm): the gap ``2 h`` is below
-    ``SolverSettings.predict_contact_below_mm``.  Where the inner walls meet on a fine mesh it
+    ``SolverSettings.predict_contact_below_mm`` (or ``predict_contact_below_t`` times the wall
+    thickness).  Where the inner walls meet on a fine mesh it
     ends the node-by-node crawl of the active set (mr, t = 1.4 mm, 4 x 36, 240 mm tube,
     switched on at gap 3.42 mm: to gap 2.70 mm in 907 s; off: at 3.13 mm after 1815 s).  On
     from the first step it takes another path through the crease (a snap: the uncut step is
     wild there) and, on the 240 mm tube, stalled in it (``python benchmarks/bench_fe3d.py
-    wallsmeet``)."""
-    return 2.0 * h < st.settings.predict_contact_below_mm
+    wallsmeet``).  ``SolverSettings.predict_contact_below_t`` gives the gap in wall
+    thicknesses; the larger gap counts."""
+    s = st.settings
+    return 2.0 * h < max(s.predict_contact_below_mm, s.predict_contact_below_t * st.disc_thickness)
 
 
 #: relative residual to which Newton solves while the active set may still change; once it
@@ -1492,6 +1495,11 @@ def _validate_spec(spec: CaseSpec3D) -> None:
             "solver.predict_contact_below_mm",
             spec.solver.predict_contact_below_mm,
             spec.solver.predict_contact_below_mm >= 0,
+        ),
+        (
+            "solver.predict_contact_below_t",
+            spec.solver.predict_contact_below_t,
+            spec.solver.predict_contact_below_t >= 0,
         ),
     )
     for name, value, ok in checks:

@@ -386,6 +386,9 @@ def test_the_2d_model_refuses_predicted_contact():
     spec = CaseSpec("mr", 1.4, solver=SolverSettings(predict_contact_below_mm=3.5))
     with pytest.raises(ValueError, match="predict_contact_below_mm=3.5: predicted contact is 3D"):
         run_case(spec)
+    spec = CaseSpec("mr", 1.4, solver=SolverSettings(predict_contact_below_t=2.5))
+    with pytest.raises(ValueError, match="predict_contact_below_t=2.5: predicted contact is 3D"):
+        run_case(spec)
 
 
 def test_strain_energy_column_equals_the_jaws_work_2d():

@@ -754,8 +754,9 @@ def test_plane_strain_3d_follows_the_2d_model_through_the_crease_band():
 
 
 def test_predicted_contact_is_on_below_its_gap_only_and_keeps_the_equilibrium(monkeypatch):
-    """``SolverSettings.predict_contact_below_mm``: a cut Newton step hands its uncut step (the
-    probe) to the active-set update only while the jaw gap is below the setting (0: never),
+    """``SolverSettings.predict_contact_below_mm`` (or ``_t``, in wall thicknesses): a cut
+    Newton step hands its uncut step (the probe) to the active-set update only while the jaw
+    gap is below the setting (0: never),
     and the run reaches the same equilibria (stick, jaw contact spreading over the tube, four
     cut steps: forces at four gaps equal to 1e-4; a node joining from a probe sticks where the
     probe meets the jaw, not where the cut step touched it).  A negative setting is refused."""
@@ -792,6 +793,12 @@ def test_predicted_contact_is_on_below_its_gap_only_and_keeps_the_equilibrium(mo
     assert a[-1] > 3 * a[0]  # the jaw contact spread: the force grew 3.6x
     with pytest.raises(ValueError, match="predict_contact_below_mm"):
         run_case_3d(replace(spec, solver=replace(spec.solver, predict_contact_below_mm=-1.0)))
+    # the same gap given in wall thicknesses (what a thickness sweep shares): the same run
+    calls.clear()
+    run_case_3d(replace(spec, solver=replace(spec.solver, predict_contact_below_t=15.0 / 1.4)))
+    assert calls == on
+    with pytest.raises(ValueError, match="predict_contact_below_t"):
+        run_case_3d(replace(spec, solver=replace(spec.solver, predict_contact_below_t=-1.0)))
 
 
 def test_strain_energy_column_equals_the_jaws_work(short_stroke):

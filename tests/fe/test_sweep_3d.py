@@ -73,25 +73,29 @@ def test_3d_sweep_takes_the_graded_mesh_options(tmp_path):
 
 def test_3d_sweep_takes_the_axial_mesh_and_predicted_contact_options(tmp_path):
     """``--n-jaw`` / ``--n-free`` reach the 3D mesh and ``--predict-contact-below`` (in wall
-    thicknesses) the solver, as a gap in mm per case; the sidecar records both (the converged
-    mesh of docs/fe-model.md runs from the command line)."""
+    thicknesses) the solver; the sidecars record both, and a sweep over several thicknesses
+    takes it (the documented converged sweep, docs/fe-sweeps.md, stopped with "cases of one
+    sweep must share their parameters" when the option was stored as a gap in mm per case)."""
     out = tmp_path / "axial"
     axial = ["--n-jaw", "2", "--n-free", "3", "--predict-contact-below", "2.5"]
-    assert _sweep(out, "--model", "3d", *COARSE, *axial) == 0
-    meta = json.loads((out / "mr_t1.40.json").read_text())
-    assert meta["mesh"]["n_jaw"] == 2 and meta["mesh"]["n_free"] == 3
-    assert meta["solver"]["predict_contact_below_mm"] == pytest.approx(3.5)
-    assert meta["status"] == "complete"
-    # one multiple serves a thickness sweep: each case's gap is the multiple times its t
+    argv = ["sweep", "--thickness", "1.2,1.4", "--material", "mr", "--workers", "1", "--quiet"]
+    assert main([*argv, "--out", str(out), "--model", "3d", *COARSE, *axial]) == 0
+    for stem in ("mr_t1.20", "mr_t1.40"):
+        meta = json.loads((out / f"{stem}.json").read_text())
+        assert meta["mesh"]["n_jaw"] == 2 and meta["mesh"]["n_free"] == 3
+        assert meta["solver"]["predict_contact_below_t"] == 2.5
+        assert meta["solver"]["predict_contact_below_mm"] == 0.0
+        assert meta["status"] == "complete"
+    # one multiple serves a thickness sweep
     specs = build_grid("0.8,2.0", "mr,le")
     opts = Model3DOptions(n_free=6, predict_contact_below_t=2.5)
     cases = to_3d(specs, opts, {"n_layers": 4})
     for c in cases:
-        assert c.solver.predict_contact_below_mm == pytest.approx(2.5 * c.thickness_mm)
+        assert c.solver.predict_contact_below_t == 2.5
         assert c.mesh.n_free == 6 and c.mesh.n_layers == 4 and c.mesh.n_jaw == 4
     # not given: predicted contact stays off, the mesh default
     (plain,) = to_3d(build_grid("1.4", "mr"), Model3DOptions(), {})
-    assert plain.solver.predict_contact_below_mm == 0.0 and plain.mesh.n_free == 9
+    assert plain.solver.predict_contact_below_t == 0.0 and plain.mesh.n_free == 9
 
 
 def test_2d_sweep_with_stick_contact_records_it(tmp_path):
