@@ -27,6 +27,7 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py reuse --closed-gap 1.5      # the whole stroke (~30 min)
     python benchmarks/bench_fe3d.py band          # 4 x 48 vs 4 x 36, 240 mm: crease band (~35 min)
     python benchmarks/bench_fe3d.py stall         # 4 x 36: budgeted solves stop when rising
+    python benchmarks/bench_fe3d.py factors       # 4 x 36 sweep case: where factorisations go
 
 Forces in N, gaps in mm.  t = 1.4 mm, Mooney-Rivlin, unless stated.  Timings are wall-clock on
 whatever machine runs this (noisy when shared).
@@ -917,6 +918,119 @@ def bench_stall() -> dict:
     return out
 
 
+class _AttributedSolver:
+    """A :func:`grasprom.fe.linsolve.make_solver` solver that logs every factorisation (each
+    call; ``resolve`` reuses the factor) with its wall time and where it came from, read off
+    the call stack: the phase (``forward`` step, ``crease`` placement, ``relax``) and the kind
+    (``predictor``, ``newton`` direction, ``shift``: a Levenberg-shifted retry)."""
+
+    def __init__(self, inner) -> None:
+        self.inner = inner
+        self.log: list[list] = []  # [phase, kind, seconds, failed]
+
+    @property
+    def factorizations(self) -> int:
+        return self.inner.factorizations
+
+    @property
+    def name(self) -> str:
+        from grasprom.fe.linsolve import solver_name
+
+        return solver_name(self.inner)
+
+    def resolve(self, rhs):
+        return self.inner.resolve(rhs)
+
+    def __call__(self, K, rhs):
+        names, shift = [], 0.0
+        f = sys._getframe(1)
+        while f is not None:
+            names.append(f.f_code.co_name)
+            if f.f_code.co_name == "descent_direction":
+                shift = f.f_locals.get("shift", 0.0)
+            f = f.f_back
+        phase = (
+            "crease" if "_crease_onset" in names else "relax" if "_relax" in names else "forward"
+        )
+        kind = "predictor" if "_predict" in names else "shift" if shift else "newton"
+        t0 = time.perf_counter()
+        try:
+            return self.inner(K, rhs)
+        finally:
+            self.log.append([phase, kind, time.perf_counter() - t0, False])
+
+
+def bench_factors(closed_gap: float = 1.5) -> dict:
+    """Where the factorisations of the converged sweep's case go (4 x 36 graded 8:1, six axial
+    divisions beyond the jaw, 240 mm tube, mr, t = 1.4, stick, contact predicted below 2.5 t,
+    no landing gaps: the case ``grasprom sweep`` runs; ~15 min): count and seconds by phase
+    (forward steps, crease placement, relaxation) and kind (predictor, Newton direction,
+    Levenberg shift), those spent in solves that failed, and the assembly's share."""
+    from grasprom.fe import model3d
+
+    base, _ = _converged_case(closed_gap)
+    spec = replace(base, solver=replace(base.solver, land_on_gaps_mm=()))
+    solvers: list[_AttributedSolver] = []
+    make, solve_step, assemble = model3d.make_solver, model3d._solve_step, model3d.assemble
+    assembly = {"calls": 0, "tangents": 0, "s": 0.0}
+
+    def attributed(name: str = "auto"):
+        solvers.append(_AttributedSolver(make(name)))
+        return solvers[-1]
+
+    def marked(*args, **kw):  # the factorisations of a solve that raises count as failed
+        st = args[0]
+        start = len(st.solver.log)
+        try:
+            return solve_step(*args, **kw)
+        except Exception:
+            for entry in st.solver.log[start:]:
+                entry[3] = True
+            raise
+
+    def timed(disc, material, u, tangent=True, block=0):
+        t0 = time.perf_counter()
+        try:
+            return assemble(disc, material, u, tangent, block)
+        finally:
+            assembly["calls"] += 1
+            assembly["tangents"] += bool(tangent)
+            assembly["s"] += time.perf_counter() - t0
+
+    model3d.make_solver, model3d._solve_step, model3d.assemble = attributed, marked, timed
+    try:
+        t0 = time.perf_counter()
+        r = _run(spec, "the sweep's 4 x 36 case, factorisations attributed")
+        wall = time.perf_counter() - t0
+    finally:
+        model3d.make_solver, model3d._solve_step, model3d.assemble = make, solve_step, assemble
+    log = solvers[0].log
+    out: dict = {"wall_s": wall, "newton_iterations": r.info["newton_iterations"]}
+    out |= {"steps": r.info["steps"], "factorizations": len(log), "assembly": assembly}
+    print(f"  {'phase':8s} {'kind':10s} {'count':>6s} {'s':>7s} {'failed':>7s} {'failed s':>9s}")
+    for phase in ("forward", "crease", "relax"):
+        for kind in ("predictor", "newton", "shift"):
+            sel = [e for e in log if e[0] == phase and e[1] == kind]
+            bad = [e for e in sel if e[3]]
+            row = {"count": len(sel), "s": sum(e[2] for e in sel)}
+            row |= {"failed": len(bad), "failed_s": sum(e[2] for e in bad)}
+            out[f"{phase}/{kind}"] = row
+            print(
+                f"  {phase:8s} {kind:10s} {row['count']:6d} {row['s']:7.1f} {row['failed']:7d}"
+                f" {row['failed_s']:9.1f}",
+                flush=True,
+            )
+    fact_s = sum(e[2] for e in log)
+    print(
+        f"  total: {len(log)} factorisations ({fact_s:.0f} s), {assembly['calls']} assemblies "
+        f"({assembly['tangents']} with the tangent, {assembly['s']:.0f} s), "
+        f"{r.info['newton_iterations']} Newton iterations, {r.info['steps']} steps, "
+        f"{wall:.0f} s wall",
+        flush=True,
+    )
+    return out
+
+
 #: gaps (mm) of the 3D band study: bending, the crease band 2t..4t (t = 1.4 mm) and the walls
 #: meeting at 2t
 BAND_GAPS = (20.0, 10.0, 6.0, 5.5, 5.0, 4.8, 4.5, 4.3, 4.0, 3.8, 3.5, 3.2, 3.0, 2.9, 2.8)
@@ -993,6 +1107,7 @@ SECTIONS = {
     "reuse": bench_reuse,
     "band": bench_band,
     "stall": bench_stall,
+    "factors": bench_factors,
 }
 
 
@@ -1035,6 +1150,8 @@ def main(argv: list[str]) -> None:
             results[name] = bench_activeset(args.closed_gap or 1.5)
         elif name == "reuse":
             results[name] = bench_reuse(args.closed_gap or 12.0)
+        elif name == "factors":
+            results[name] = bench_factors(args.closed_gap or 1.5)
         else:
             results[name] = SECTIONS[name]()
     text = json.dumps(results, default=str)
