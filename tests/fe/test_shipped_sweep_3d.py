@@ -1,5 +1,6 @@
-"""Physics sanity of the shipped default sweep, the 3D model (issue 18), in fe_data/default;
-checked against the 2D sweep fe_data/2d and the model's own invariants (no FE is re-run).
+"""Physics sanity of the shipped 3D sweeps (issue 18): the default one in fe_data/default and
+the one on the converged cross-section in fe_data/3d_4x36; checked against the 2D sweep
+fe_data/2d and the model's own invariants (no FE is re-run).
 
 References: the 2D plane-strain ring times the jaw length is a lower bound of the 3D tube's
 bending force (the tube beyond the jaws resists the ovalisation: 3D / 2D = 3-7.5 in the linear
@@ -17,15 +18,17 @@ from grasprom.fe.grid import parse_thickness
 from tests.fe.curves import curve, force_at
 
 ROOT = Path(__file__).resolve().parents[2]
-SWEEP = ROOT / "fe_data" / "default"
 SWEEP_2D = ROOT / "fe_data" / "2d"
 THICKNESSES = parse_thickness("0.8:2.0:0.2")
-MATERIALS = ("mr", "nh", "le")
+#: the shipped 3D sweeps and their materials (docs/fe-sweeps.md, *Shipped data*)
+SWEEPS = {"default": ("mr", "nh", "le"), "3d_4x36": ("mr", "le")}
 
 
-@pytest.fixture(scope="module")
-def sweep():
-    return load_sweep(SWEEP)
+@pytest.fixture(scope="module", params=sorted(SWEEPS))
+def shipped(request):
+    """``(directory, materials, loaded sweep)`` of one shipped 3D sweep."""
+    path = ROOT / "fe_data" / request.param
+    return path, SWEEPS[request.param], load_sweep(path)
 
 
 @pytest.fixture(scope="module")
@@ -33,10 +36,12 @@ def sweep2d():
     return load_sweep(SWEEP_2D)
 
 
-def test_grid_is_complete_3d_and_covers_the_haptic_range(sweep):
-    for m in MATERIALS:
+def test_grid_is_complete_3d_and_covers_the_haptic_range(shipped):
+    path, materials, sweep = shipped
+    assert set(sweep["material"]) == set(materials)
+    for m in materials:
         for t in THICKNESSES:
-            meta = read_case(SWEEP / f"{m}_t{t:.2f}.json").meta
+            meta = read_case(path / f"{m}_t{t:.2f}.json").meta
             assert meta["status"] == "complete", (m, t)
             assert meta["model"] == "3d" and meta["contact"] == "stick", (m, t)
             assert meta["tube_length_mm"] == 240.0 and meta["ends"] == "free"
@@ -46,49 +51,68 @@ def test_grid_is_complete_3d_and_covers_the_haptic_range(sweep):
             assert f.max() >= 50.0
 
 
-def test_force_is_monotone_in_closing_but_in_the_crease_band(sweep):
+def test_force_is_monotone_in_closing_but_in_the_crease_band(shipped):
     """Monotone, except snaps in the crease band (gap between 2t and 4t, where the inner wall
     folds and the walls meet: in 3D they touch first under the jaw centre and the fold pattern
-    changes), each of at most 20 % of the force (measured: le 0.8 mm 10.9 -> 9.1 N at gap
-    1.79 mm, the largest; mr 1.8 mm 2.64 -> 2.48 N at 6.23 mm)."""
-    for m in MATERIALS:
+    changes), each of at most 30 % of the force (measured on the default mesh: le 0.8 mm
+    10.9 -> 9.1 N at gap 1.79 mm, the largest; mr 1.8 mm 2.64 -> 2.48 N at 6.23 mm; on 4 x 36:
+    mr 0.8 mm 0.917 -> 0.699 N at 2.60 mm, the largest, mr 1.0 mm -7.5 % at 3.39 mm)."""
+    _, materials, sweep = shipped
+    for m in materials:
         for t in THICKNESSES:
             g, f = curve(sweep, m, t)
             assert np.all(np.diff(g) < 0)
             drop = np.diff(f) < -1e-6 * max(1.0, f.max())
             at = g[1:][drop]
             assert np.all((at >= 2 * t - 1e-9) & (at <= 4 * t)), (m, t, at)
-            assert np.all(f[1:][drop] >= 0.8 * f[:-1][drop]), (m, t)
+            assert np.all(f[1:][drop] >= 0.7 * f[:-1][drop]), (m, t)
 
 
-def test_force_increases_with_thickness_at_every_gap(sweep):
-    for m in MATERIALS:
+def test_force_increases_with_thickness_at_every_gap(shipped):
+    _, materials, sweep = shipped
+    for m in materials:
         for t0, t1 in zip(THICKNESSES[:-1], THICKNESSES[1:]):
             lo = max(curve(sweep, m, t0)[0].min(), curve(sweep, m, t1)[0].min())
             for gap in np.linspace(lo, 25.0, 40):
                 assert force_at(sweep, m, t1, gap) > force_at(sweep, m, t0, gap), (m, t0, gap)
 
 
-def test_linear_elastic_is_stiffer_than_mooney_rivlin(sweep):
+def test_linear_elastic_is_stiffer_than_mooney_rivlin(shipped):
     """Guachi et al. (2020): LE (E = 5.18 MPa) is stiffer than MR (small-strain E = 0.84 MPa)."""
+    _, _, sweep = shipped
     for t in THICKNESSES:
         g, _ = curve(sweep, "le", t)
         for gap in np.linspace(max(g.min(), 2 * t), 25.0, 20):
             assert force_at(sweep, "le", t, gap) > 2.0 * force_at(sweep, "mr", t, gap), (t, gap)
 
 
-def test_3d_tube_is_stiffer_than_the_2d_ring_in_bending(sweep, sweep2d):
+def test_3d_tube_is_stiffer_than_the_2d_ring_in_bending(shipped, sweep2d):
     """Before the walls meet the 3D tube carries 2-9 x the 2D ring x jaw length."""
-    for m in MATERIALS:
+    _, materials, sweep = shipped
+    for m in materials:
         for t in THICKNESSES:
             for gap in (20.0, 10.0):
                 r = force_at(sweep, m, t, gap) / force_at(sweep2d, m, t, gap)
                 assert 2.0 <= r <= 9.0, (m, t, gap, r)
 
 
-def test_stick_contact_has_a_tangential_reaction(sweep):
-    for m in MATERIALS:
+def test_stick_contact_has_a_tangential_reaction(shipped):
+    _, materials, sweep = shipped
+    for m in materials:
         for t in THICKNESSES:
             c = sweep[(sweep["material"] == m) & np.isclose(sweep["thickness_mm"], t)]
             share = c["tangential_share"].to_numpy()
             assert np.all(share >= 0) and share.max() > 0.01, (m, t)
+
+
+def test_the_two_3d_sweeps_agree_in_bending():
+    """Refinement: the default mesh (2 x 12 graded 2:1, 9 axial divisions beyond the jaw) and
+    the converged cross-section (4 x 36 graded 8:1, 6 beyond) agree in bending (gaps 20 and
+    10 mm) within 3 % for every case both have (measured: within 2.2 %; docs/fe-model.md: the
+    cross-sections differ in the crease band, up to 70 %, not before it)."""
+    coarse, fine = (load_sweep(ROOT / "fe_data" / name) for name in ("default", "3d_4x36"))
+    for m in SWEEPS["3d_4x36"]:
+        for t in THICKNESSES:
+            for gap in (20.0, 10.0):
+                a, b = force_at(coarse, m, t, gap), force_at(fine, m, t, gap)
+                assert b == pytest.approx(a, rel=0.03), (m, t, gap)
