@@ -50,7 +50,7 @@ def _gap_at(g: np.ndarray, f: np.ndarray, level: float = 20.0) -> float:
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) != 2:
-        print(__doc__.splitlines()[2].strip(), file=sys.stderr)
+        print("usage: python benchmarks/fe3d_compare.py REFERENCE OTHER", file=sys.stderr)
         return 2
     ref_dir, other_dir = (Path(a) for a in argv)
     print(f"reference {ref_dir} vs {other_dir}: force (N) and deviation (%)")
