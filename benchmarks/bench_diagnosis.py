@@ -27,7 +27,7 @@ Usage::
 
     python benchmarks/bench_diagnosis.py [--seed 2024] [--per-effect 6] [--null 14] \
         [--ool 12] [--trials 4] [--workers 2] [--gap-channel] [--json results.json] \
-        [--acquisition ideal|coarse|jitter|500hz|2khz|realistic] [--tremor DEG]
+        [--acquisition ideal|coarse|jitter|500hz|2khz|realistic] [--tremor DEG] [--fe DIR]
 
 About 5-7 minutes with ``--workers 1`` for the default 116 cases (280-360 s measured for
 ``ideal`` and ``realistic`` since the interval likelihood of the encoder quantum, which
@@ -54,18 +54,20 @@ sys.path.insert(0, str(ROOT))
 
 from grasprom.gap import LIBRARY_EFFECTS, OUT_OF_LIBRARY_EFFECTS  # noqa: E402
 
-_SURROGATE = None
+_SURROGATES: dict = {}  # per FE sweep directory, built once per process
 
 
-def _surrogate():
-    global _SURROGATE
-    if _SURROGATE is None:
+def _surrogate(fe: str | None = None):
+    """The surrogate the cases are synthesised and diagnosed with: built from the FE sweep
+    ``fe`` (default the shipped ``fe_data/default``)."""
+    path = Path(fe) if fe else ROOT / "fe_data" / "default"
+    if path not in _SURROGATES:
         from grasprom.surrogate import Surrogate
 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            _SURROGATE = Surrogate.build(ROOT / "fe_data" / "default")
-    return _SURROGATE
+            _SURROGATES[path] = Surrogate.build(path)
+    return _SURROGATES[path]
 
 
 ADDED_EFFECTS = ("sensor_drift",)
@@ -156,7 +158,7 @@ def run_case(case: dict, n_trials: int = 4, gap_channel: bool = False,
     from grasprom.chain import kinematics as kin
     from grasprom.gap import diagnose, synth_case, validate_trial
 
-    s = _surrogate()
+    s = _surrogate(case.get("fe"))
     chain = kin.ChainParams()
     t0 = time.perf_counter()
     # one trial more than diagnosed: the fresh trial of fresh_trial_shrink (the first
@@ -183,7 +185,7 @@ def run_case(case: dict, n_trials: int = 4, gap_channel: bool = False,
         d = diagnose(trials, s, chain)
     v = d.report["verdict"]
     fresh, fresh_g, fresh_u = (
-        _fresh_shrinks(unseen, case["seed"], acquisition, d.augmented)
+        _fresh_shrinks(unseen, case["seed"], acquisition, d.augmented, case.get("fe"))
         if v["label"] == "explained" and d.augmented is not None
         else (None, None, None)
     )
@@ -246,17 +248,18 @@ def fresh_trial_shrink_gaussian(unseen, seed: int, acquisition: str, augmented: 
 
 
 def _fresh_shrinks(
-    unseen, seed: int, acquisition: str, augmented: dict
+    unseen, seed: int, acquisition: str, augmented: dict, fe: str | None = None
 ) -> tuple[float, float, float]:
     """(interval-likelihood floored at the significance level, Gaussian, interval-likelihood
-    unfloored) fresh-trial shrink of :func:`fresh_trial_shrink`."""
+    unfloored) fresh-trial shrink of :func:`fresh_trial_shrink` (surrogate of the FE sweep
+    ``fe``, default ``fe_data/default``)."""
     from grasprom.chain import kinematics as kin
     from grasprom.gap import AugmentedModel, validate_trial
     from grasprom.gap.criteria import SIGNIFICANT_RHO
     from grasprom.gap.likelihood import interval_z
     from grasprom.gap.prepare import prepare_trial
 
-    s = _surrogate()
+    s = _surrogate(fe)
     chain = kin.ChainParams()
     rng = np.random.default_rng(seed + 29)
     data = acquire(unseen.data, acquisition, rng)
@@ -558,8 +561,12 @@ def main(argv=None) -> int:
                    help="how the synthetic trials are recorded (default ideal)")  # fmt: skip
     p.add_argument("--tremor", type=float, default=0.0, metavar="DEG",
                    help="hand tremor on the angle, deg RMS in 6-12 Hz (default 0)")  # fmt: skip
+    p.add_argument("--fe", default=None, metavar="DIR",
+                   help="FE sweep of the surrogate (default fe_data/default)")  # fmt: skip
     args = p.parse_args(argv)
     cases = case_list(args.seed, args.per_effect, args.null, args.ool)
+    if args.fe:
+        cases = [{**c, "fe": args.fe} for c in cases]
     t0 = time.perf_counter()
     if args.workers > 1:
         with ProcessPoolExecutor(args.workers) as ex:
