@@ -804,13 +804,14 @@ def _converged_case(closed_gap: float) -> tuple[CaseSpec3D, tuple[float, ...]]:
     return _with_gaps(spec, gaps), gaps
 
 
-def _before_and_current(spec: CaseSpec3D, name: str, before, label) -> dict:
-    """Run ``spec`` with the module constant ``model3d.<name>`` set to ``before``, then at its
-    current value (restored afterwards): ``{"before"|"current": (value, result, wall_s)}``;
-    ``label(value)`` names each run."""
+def _before_and_current(spec: CaseSpec3D, name: str, before, label, current=None) -> dict:
+    """Run ``spec`` with the module constant ``model3d.<name>`` set to ``before``, then to
+    ``current`` (default: its value now), and restore it: ``{"before"|"current": (value,
+    result, wall_s)}``; ``label(value)`` names each run."""
     from grasprom.fe import model3d
 
-    current = getattr(model3d, name)
+    kept = getattr(model3d, name)
+    current = kept if current is None else current
     out = {}
     for key, value in (("before", before), ("current", current)):
         setattr(model3d, name, value)
@@ -819,7 +820,7 @@ def _before_and_current(spec: CaseSpec3D, name: str, before, label) -> dict:
             r = _run(spec, label(value))
             out[key] = (value, r, time.perf_counter() - t0)
         finally:
-            setattr(model3d, name, current)
+            setattr(model3d, name, kept)
     return out
 
 
@@ -860,20 +861,14 @@ def bench_reuse(closed_gap: float = 12.0) -> dict:
     tube, mr, t = 1.4, stick) from first touch to ``closed_gap`` (mm; default 12, the bending
     part, ~4 min for both; 1.5 runs to the force cap with contact predicted below gap 3.5 mm,
     ~30 min): wall time, factorisations, Newton iterations, forces at fixed gaps, ratios."""
-    from grasprom.fe import model3d
-
     spec, gaps = _converged_case(closed_gap)
-    current = model3d.PREDICTOR_REUSES_FACTOR
-    model3d.PREDICTOR_REUSES_FACTOR = True  # "current": the reuse on (off by default)
-    try:
-        runs = _before_and_current(
-            spec,
-            "PREDICTOR_REUSES_FACTOR",
-            False,
-            lambda v: f"predictor reuses the Newton factor: {v}",
-        )
-    finally:
-        model3d.PREDICTOR_REUSES_FACTOR = current
+    runs = _before_and_current(  # "current": the reuse on (off by default)
+        spec,
+        "PREDICTOR_REUSES_FACTOR",
+        False,
+        lambda v: f"predictor reuses the Newton factor: {v}",
+        current=True,
+    )
     out = {}
     _header(gaps)
     for label, (_, r, wall) in runs.items():

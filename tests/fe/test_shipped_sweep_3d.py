@@ -22,13 +22,21 @@ SWEEP_2D = ROOT / "fe_data" / "2d"
 THICKNESSES = parse_thickness("0.8:2.0:0.2")
 #: the shipped 3D sweeps and their materials (docs/fe-sweeps.md, *Shipped data*)
 SWEEPS = {"default": ("mr", "nh", "le"), "3d_4x36": ("mr", "le")}
+#: the largest crease drop each sweep may show, as a share of the force (measured: 17 % on the
+#: default mesh, 24 % on 4 x 36)
+MAX_CREASE_DROP = {"default": 0.20, "3d_4x36": 0.30}
+
+
+@pytest.fixture(scope="module")
+def loaded():
+    """Every shipped 3D sweep, loaded once."""
+    return {name: load_sweep(ROOT / "fe_data" / name) for name in SWEEPS}
 
 
 @pytest.fixture(scope="module", params=sorted(SWEEPS))
-def shipped(request):
+def shipped(request, loaded):
     """``(directory, materials, loaded sweep)`` of one shipped 3D sweep."""
-    path = ROOT / "fe_data" / request.param
-    return path, SWEEPS[request.param], load_sweep(path)
+    return ROOT / "fe_data" / request.param, SWEEPS[request.param], loaded[request.param]
 
 
 @pytest.fixture(scope="module")
@@ -54,10 +62,12 @@ def test_grid_is_complete_3d_and_covers_the_haptic_range(shipped):
 def test_force_is_monotone_in_closing_but_in_the_crease_band(shipped):
     """Monotone, except snaps in the crease band (gap between 2t and 4t, where the inner wall
     folds and the walls meet: in 3D they touch first under the jaw centre and the fold pattern
-    changes), each of at most 30 % of the force (measured on the default mesh: le 0.8 mm
-    10.9 -> 9.1 N at gap 1.79 mm, the largest; mr 1.8 mm 2.64 -> 2.48 N at 6.23 mm; on 4 x 36:
-    mr 0.8 mm 0.917 -> 0.699 N at 2.60 mm, the largest, mr 1.0 mm -7.5 % at 3.39 mm)."""
-    _, materials, sweep = shipped
+    changes), each of at most :data:`MAX_CREASE_DROP` of the force (measured on the default
+    mesh: le 0.8 mm 10.9 -> 9.1 N at gap 1.79 mm, the largest; mr 1.8 mm 2.64 -> 2.48 N at
+    6.23 mm; on 4 x 36: mr 0.8 mm 0.917 -> 0.699 N at 2.60 mm, the largest, mr 1.0 mm -7.5 %
+    at 3.39 mm)."""
+    path, materials, sweep = shipped
+    keep = 1.0 - MAX_CREASE_DROP[path.name]
     for m in materials:
         for t in THICKNESSES:
             g, f = curve(sweep, m, t)
@@ -65,7 +75,7 @@ def test_force_is_monotone_in_closing_but_in_the_crease_band(shipped):
             drop = np.diff(f) < -1e-6 * max(1.0, f.max())
             at = g[1:][drop]
             assert np.all((at >= 2 * t - 1e-9) & (at <= 4 * t)), (m, t, at)
-            assert np.all(f[1:][drop] >= 0.7 * f[:-1][drop]), (m, t)
+            assert np.all(f[1:][drop] >= keep * f[:-1][drop]), (m, t)
 
 
 def test_force_increases_with_thickness_at_every_gap(shipped):
@@ -105,12 +115,12 @@ def test_stick_contact_has_a_tangential_reaction(shipped):
             assert np.all(share >= 0) and share.max() > 0.01, (m, t)
 
 
-def test_the_two_3d_sweeps_agree_in_bending():
+def test_the_two_3d_sweeps_agree_in_bending(loaded):
     """Refinement: the default mesh (2 x 12 graded 2:1, 9 axial divisions beyond the jaw) and
     the converged cross-section (4 x 36 graded 8:1, 6 beyond) agree in bending (gaps 20 and
     10 mm) within 3 % for every case both have (measured: within 2.2 %; docs/fe-model.md: the
     cross-sections differ in the crease band, up to 70 %, not before it)."""
-    coarse, fine = (load_sweep(ROOT / "fe_data" / name) for name in ("default", "3d_4x36"))
+    coarse, fine = loaded["default"], loaded["3d_4x36"]
     for m in SWEEPS["3d_4x36"]:
         for t in THICKNESSES:
             for gap in (20.0, 10.0):
