@@ -4,6 +4,7 @@ Usage::
 
     python benchmarks/bench_sweep.py --thickness 0.8:2.0:0.2 --material mr,nh,le
     python benchmarks/bench_sweep.py --model 3d --thickness 1.4,2.0 --material mr,le
+    python benchmarks/bench_sweep.py --model 3d --mesh coarse --thickness 1.4 --material mr,le
 
 Each worker count runs into its own fresh directory under ``--out`` (default a temporary
 directory), so no case is skipped. Times in s.
@@ -18,7 +19,7 @@ import time
 from pathlib import Path
 
 from grasprom.fe import build_grid, load_sweep, run_sweep
-from grasprom.fe.grid3d import Model3DOptions, to_3d
+from grasprom.fe.grid3d import DEFAULT_MESH_PRESET, MESH_PRESETS, Model3DOptions, to_3d
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -30,11 +31,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", default=None, help="scratch directory (default: a temp dir)")
     p.add_argument("--progress", action="store_true", help="show progress bars")
     p.add_argument("--model", choices=("2d", "3d"), default="2d", help="FE model (default 2d)")
+    p.add_argument("--mesh", choices=tuple(MESH_PRESETS), default=DEFAULT_MESH_PRESET,
+                   help=f"3d: named mesh (default {DEFAULT_MESH_PRESET}, as sweep)")  # fmt: skip
     args = p.parse_args(argv)
 
     specs = build_grid(args.thickness, args.material)
     if args.model == "3d":  # the defaults of `grasprom sweep --model 3d`
-        specs = to_3d(specs, Model3DOptions(), {})
+        specs = to_3d(specs, Model3DOptions(mesh=args.mesh), {})
     counts = [int(w) for w in args.workers.split(",")]
     base = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="grasprom-bench-"))
     print(f"{len(specs)} {args.model} cases ({args.material} x {args.thickness} mm), "

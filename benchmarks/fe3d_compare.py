@@ -1,7 +1,7 @@
 """Two 3D sweeps case by case, e.g. the default mesh against the converged cross-section.
 Prints, asserts nothing; reads the case files, runs no FE.
 
-    python benchmarks/fe3d_compare.py REFERENCE OTHER   # e.g. fe_data/3d_4x36 fe_data/default
+    python benchmarks/fe3d_compare.py REFERENCE OTHER   # e.g. fe_data/default fe_data/3d_2x12
 
 For every case both sweeps have: the reference's force on one jaw (N) at gaps 20, 10 and 5 mm
 and at 4t, 3t, 2.5t and 2t (t the wall thickness: the crease band 2t..4t and the walls

@@ -9,8 +9,8 @@ records the deformed tube at a few gaps and writes
   the tube at those gaps;
 * ``force_gap.csv`` -- the force on one jaw (N) over the gap (mm).
 
-    python examples/tube3d_vtu.py --out /tmp/tube3d            # default mesh, about 4 min
-    python examples/tube3d_vtu.py --out /tmp/tube3d --fast     # coarse mesh, short stroke, s
+    python examples/tube3d_vtu.py --out /tmp/tube3d         # MeshSpec3D defaults (2 x 12), 4 min
+    python examples/tube3d_vtu.py --out /tmp/tube3d --fast  # 1 x 8 mesh, short stroke, s
 """
 
 from __future__ import annotations

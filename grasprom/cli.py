@@ -189,14 +189,15 @@ def _add_case_geometry(s: argparse.ArgumentParser, d: dict) -> None:
         type=int,
         default=None,
         metavar="N",
-        help=f"mesh layers through the wall (default {d['n_layers']})",
+        help=f"mesh layers through the wall (2d default {d['n_layers']}; 3d: of --mesh)",
     )
     s.add_argument(
         "--n-circ",
         type=int,
         default=None,
         metavar="N",
-        help=f"mesh divisions along the quarter circumference (default {d['n_circ']})",
+        help=f"mesh divisions along the quarter circumference (2d default {d['n_circ']}; 3d: of "
+        "--mesh)",
     )
     s.add_argument(
         "--grading",
@@ -205,8 +206,8 @@ def _add_case_geometry(s: argparse.ArgumentParser, d: dict) -> None:
         metavar="RATIO",
         help="mesh: largest / smallest element along the circumference, refining toward the "
         f"side fold (1 = uniform; 2d default {d['grading']:g}, lowered for thick walls so the "
-        f"fold corner element is at least {d['corner_aspect']:g} times as long as thick; 3d "
-        "default of grasprom.fe.mesh3d.MeshSpec3D)",
+        f"fold corner element is at least {d['corner_aspect']:g} times as long as thick; 3d: "
+        "of --mesh)",
     )
     s.add_argument(
         "--radial-grading",
@@ -214,8 +215,7 @@ def _add_case_geometry(s: argparse.ArgumentParser, d: dict) -> None:
         default=None,
         metavar="RATIO",
         help="mesh: outermost / innermost layer thickness, refining toward the inner wall "
-        f"(1 = uniform; 2d default {d['radial_grading']:g}; 3d default of "
-        "grasprom.fe.mesh3d.MeshSpec3D)",
+        f"(1 = uniform; 2d default {d['radial_grading']:g}; 3d: of --mesh)",
     )
 
 
@@ -264,8 +264,7 @@ def _add_model_options(s: argparse.ArgumentParser) -> None:
         type=int,
         default=None,
         metavar="N",
-        help="3d: axial mesh divisions over the jaw and its fine margin (default of "
-        "grasprom.fe.mesh3d.MeshSpec3D)",
+        help="3d: axial mesh divisions over the jaw and its fine margin (default of --mesh)",
     )
     s.add_argument(
         "--n-free",
@@ -273,16 +272,27 @@ def _add_model_options(s: argparse.ArgumentParser) -> None:
         default=None,
         metavar="N",
         help="3d: axial mesh divisions beyond the jaw, growing toward the tube end (default of "
-        "grasprom.fe.mesh3d.MeshSpec3D)",
+        "--mesh)",
     )
     s.add_argument(
         "--predict-contact-below",
         type=float,
         default=None,
         metavar="T",
-        help="3d, experimental: below this jaw gap, in wall thicknesses (2.5 = gap 3.5 mm at "
-        "t = 1.4 mm), a Newton step cut at a first touch adds every node its full step would "
-        "push into contact, so fine meshes do not crawl where the inner walls meet (default off)",
+        help="3d: below this jaw gap, in wall thicknesses (2.5 = gap 3.5 mm at t = 1.4 mm), a "
+        "Newton step cut at a first touch adds every node its full step would push into "
+        "contact, so fine meshes do not crawl where the inner walls meet (default of --mesh: "
+        "2.5 converged, off coarse)",
+    )
+    s.add_argument(
+        "--mesh",
+        default=None,
+        metavar="NAME",
+        help="3d: named mesh, converged (default; the shipped fe_data/default's: 4 x 36 graded "
+        "8:1, 6 axial divisions beyond the jaw, contact predicted below 2.5 t; 10-30 min a "
+        "case) or coarse (2 x 12 graded 2:1, 9 beyond: fe_data/3d_2x12, converged in bending "
+        "only; 2-5 min a case); the mesh options above override it one by one "
+        "(grasprom.fe.grid3d.MESH_PRESETS)",
     )
 
 
@@ -519,6 +529,7 @@ def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
         args.n_jaw,
         args.n_free,
         args.predict_contact_below,
+        args.mesh,
     )
     try:
         check_options(args.model, opts3d)

@@ -17,9 +17,12 @@ from grasprom.fe.grid import SweepInputError
 
 __all__ = [
     "CONTACT_LAWS",
+    "DEFAULT_MESH_PRESET",
     "ENDS",
+    "MESH_PRESETS",
     "MIN_CIRC_3D",
     "MODELS",
+    "MeshPreset",
     "Model3DOptions",
     "check_options",
     "to_2d",
@@ -38,6 +41,49 @@ ENDS = ("seed", "free")
 MIN_CIRC_3D = 6
 """Fewest divisions along the quarter circumference a 3D case accepts (a guard: coarser meshes
 are not tested against the contact, and one graded element would span over 20 degrees)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class MeshPreset:
+    """A named 3D mesh of ``grasprom sweep --model 3d --mesh NAME``.
+
+    Parameters
+    ----------
+    mesh : mapping
+        :class:`~grasprom.fe.mesh3d.MeshSpec3D` fields that differ from its defaults (the
+        mesh options given on the command line override them one by one).
+    predict_contact_below_t : float or None
+        ``SolverSettings.predict_contact_below_t`` (jaw gap in wall thicknesses) unless
+        ``--predict-contact-below`` is given; None: off.
+    description : str
+        What the mesh is for (``grasprom sweep --help``).
+    """
+
+    mesh: Mapping[str, float]
+    predict_contact_below_t: float | None
+    description: str
+
+
+MESH_PRESETS = {
+    "converged": MeshPreset(
+        {"n_layers": 4, "n_circ": 36, "grading": 8.0, "n_free": 6},
+        2.5,
+        "4 x 36 graded 8:1 toward the side fold, 6 axial divisions beyond the jaw, contact "
+        "predicted below gap 2.5 t: the shipped fe_data/default's mesh, within 1.6 % of 4 x 48 "
+        "from gap 20 to 2.8 mm but where the crease sets in (10-30 min a case)",
+    ),
+    "coarse": MeshPreset(
+        {},
+        None,
+        "the defaults of grasprom.fe.mesh3d.MeshSpec3D (2 x 12 graded 2:1, 9 axial divisions "
+        "beyond the jaw): within 2.2 % of 'converged' in bending, 7-71 % off in the crease "
+        "band (fe_data/3d_2x12; 2-5 min a case)",
+    ),
+}
+"""The named 3D meshes of ``--mesh`` (docs/fe-sweeps.md, docs/fe-model.md)."""
+
+DEFAULT_MESH_PRESET = "converged"
+"""The ``--mesh`` of ``grasprom sweep --model 3d`` when none is given: the shipped data's."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -64,6 +110,9 @@ class Model3DOptions:
         thickness, and the cases share one setting), so one value fits a thickness sweep (the
         converged 4 x 36 mesh needs it where the inner walls close onto each other: 2.5 = gap
         3.5 mm at t = 1.4 mm).
+    mesh : str or None
+        A name of :data:`MESH_PRESETS` (None: :data:`DEFAULT_MESH_PRESET`); the mesh options
+        given override it one by one.
     """
 
     contact: str | None = None
@@ -73,6 +122,7 @@ class Model3DOptions:
     n_jaw: int | None = None
     n_free: int | None = None
     predict_contact_below_t: float | None = None
+    mesh: str | None = None
 
     def given_3d_only(self) -> list[str]:
         """The CLI names of the options given that only the 3D model takes."""
@@ -82,6 +132,7 @@ class Model3DOptions:
             ("--n-jaw", self.n_jaw),
             ("--n-free", self.n_free),
             ("--predict-contact-below", self.predict_contact_below_t),
+            ("--mesh", self.mesh),
         )
         return [name for name, v in flags if v is not None]
 
@@ -103,6 +154,9 @@ def check_options(model: str, opts: Model3DOptions) -> None:
     _check_friction(opts)
     if opts.ends is not None and opts.ends not in ENDS:
         raise SweepInputError(f"--ends: {opts.ends!r} unknown; valid: {', '.join(ENDS)}")
+    if opts.mesh is not None and opts.mesh not in MESH_PRESETS:
+        valid = ", ".join(MESH_PRESETS)
+        raise SweepInputError(f"--mesh: {opts.mesh!r} unknown; valid: {valid}")
     tl = opts.tube_length_mm
     if tl is not None and not (isinstance(tl, int | float) and math.isfinite(tl) and tl > 0):
         raise SweepInputError(f"--tube-length: must be a length > 0 in mm, got {tl!r}")
@@ -168,7 +222,8 @@ def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, float])
     opts : Model3DOptions
     mesh : mapping
         ``n_layers``, ``n_circ``, ``grading``, ``radial_grading`` given on the command line
-        (validated by the 2D grid; the others take the :class:`MeshSpec3D` defaults).
+        (validated by the 2D grid); they override the preset ``opts.mesh`` (default
+        :data:`DEFAULT_MESH_PRESET`), and the preset the :class:`MeshSpec3D` defaults.
 
     Returns
     -------
@@ -177,6 +232,8 @@ def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, float])
     from grasprom.fe.mesh3d import MeshSpec3D
     from grasprom.fe.model3d import CaseSpec3D
 
+    preset = MESH_PRESETS[opts.mesh or DEFAULT_MESH_PRESET]
+    mesh = {**preset.mesh, **mesh}
     if mesh.get("n_circ", MIN_CIRC_3D) < MIN_CIRC_3D:
         raise SweepInputError(
             f"--n-circ: the 3D model needs at least {MIN_CIRC_3D} divisions along the quarter "
@@ -186,8 +243,9 @@ def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, float])
     extra = {k: v for k, v in dataclasses.asdict(opts).items() if v is not None}
     extra["friction"] = float(opts.friction) if opts.contact == "coulomb" else 0.0
     axial = {k: extra.pop(k) for k in ("n_jaw", "n_free") if k in extra}
-    below_t = extra.pop("predict_contact_below_t", None)
-    mesh3d = MeshSpec3D(**dict(mesh), **axial)
+    below_t = extra.pop("predict_contact_below_t", preset.predict_contact_below_t)
+    extra.pop("mesh", None)
+    mesh3d = MeshSpec3D(**{**mesh, **axial})
     out = []
     for s in specs:
         spec = CaseSpec3D(

@@ -22,16 +22,16 @@ def _run(*args: str) -> subprocess.CompletedProcess:
 
 
 def test_compares_every_shared_case_and_reads_the_gap_at_20_newton():
-    res = _run("fe_data/3d_4x36", "fe_data/default")
+    res = _run("fe_data/default", "fe_data/3d_2x12")
     assert res.returncode == 0, res.stderr
     rows: dict[str, list[str]] = {}  # the comparison's line of each case (the cost line follows)
     for ln in res.stdout.splitlines():
         if "_t" in ln[:9]:
             rows.setdefault(ln.split()[0], ln.split())
-    stems = {f"{m}_t{t:.2f}" for m in ("mr", "le") for t in np.arange(0.8, 2.01, 0.2)}
+    stems = {f"{m}_t{t:.2f}" for m in ("mr", "nh", "le") for t in np.arange(0.8, 2.01, 0.2)}
     assert stems <= set(rows)
     # the gap at 20 N (first crossing along the path) of both, read off the tables here
-    for name, col in (("3d_4x36", -3), ("default", -2)):
+    for name, col in (("default", -3), ("3d_2x12", -2)):
         tb = read_case(ROOT / "fe_data" / name / "mr_t1.40.json").table
         g, f = tb["gap_mm"].to_numpy(), tb["force_N"].to_numpy()
         k = int(np.argmax(f >= 20.0))
@@ -40,5 +40,5 @@ def test_compares_every_shared_case_and_reads_the_gap_at_20_newton():
 
 
 def test_usage_error_without_two_sweeps():
-    res = _run("fe_data/3d_4x36")
+    res = _run("fe_data/default")
     assert res.returncode == 2 and "fe3d_compare.py REFERENCE OTHER" in res.stderr

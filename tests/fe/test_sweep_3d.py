@@ -7,17 +7,22 @@ resists the ovalisation), and clear errors for options that do not fit the model
 
 from __future__ import annotations
 
+import dataclasses
 import json
+from pathlib import Path
 
 import pandas as pd
 import pytest
 
 from grasprom.cli import main
 from grasprom.fe.grid import build_grid
-from grasprom.fe.grid3d import Model3DOptions, to_3d
+from grasprom.fe.grid3d import DEFAULT_MESH_PRESET, MESH_PRESETS, Model3DOptions, to_3d
+from grasprom.fe.mesh3d import MeshSpec3D
 from grasprom.fe.model2d import CONTRACT_COLUMNS
 
-COARSE = ["--n-layers", "1", "--n-circ", "8", "--tube-length", "30", "--closed-gap", "27"]
+ROOT = Path(__file__).resolve().parents[2]
+COARSE = ["--mesh", "coarse", "--n-layers", "1", "--n-circ", "8", "--tube-length", "30",
+          "--closed-gap", "27"]  # fmt: skip
 
 
 def _sweep(out, *extra):
@@ -93,9 +98,36 @@ def test_3d_sweep_takes_the_axial_mesh_and_predicted_contact_options(tmp_path):
     for c in cases:
         assert c.solver.predict_contact_below_t == 2.5
         assert c.mesh.n_free == 6 and c.mesh.n_layers == 4 and c.mesh.n_jaw == 4
-    # not given: predicted contact stays off, the mesh default
-    (plain,) = to_3d(build_grid("1.4", "mr"), Model3DOptions(), {})
-    assert plain.solver.predict_contact_below_t == 0.0 and plain.mesh.n_free == 9
+    # the coarse mesh: predicted contact off, MeshSpec3D's defaults
+    (plain,) = to_3d(build_grid("1.4", "mr"), Model3DOptions(mesh="coarse"), {})
+    assert plain.solver.predict_contact_below_t == 0.0 and plain.mesh == MeshSpec3D()
+
+
+def test_3d_sweep_defaults_to_the_shipped_mesh():
+    """Without mesh options ``grasprom sweep --model 3d`` computes on the mesh of the shipped
+    ``fe_data/default`` (its sweep manifest records the mesh and the solver settings), so the
+    documented command reproduces the shipped data; each mesh option overrides the preset."""
+    manifest = json.loads((ROOT / "fe_data" / "default" / "sweep.json").read_text())
+    shipped = manifest["parameters"]
+    (case,) = to_3d(build_grid("1.4", "mr"), Model3DOptions(), {})
+    assert dataclasses.asdict(case.mesh) == shipped["mesh"]
+    below = shipped["solver"]["predict_contact_below_t"]
+    assert case.solver.predict_contact_below_t == below == 2.5
+    (other,) = to_3d(build_grid("1.4", "mr"), Model3DOptions(n_free=3), {"n_circ": 24})
+    assert (other.mesh.n_circ, other.mesh.n_free, other.mesh.grading) == (24, 3, 8.0)
+    assert DEFAULT_MESH_PRESET == "converged" and set(MESH_PRESETS) == {"converged", "coarse"}
+    helptext = " ".join(_sweep_help().split())
+    assert all(name in helptext for name in MESH_PRESETS)
+
+
+def _sweep_help() -> str:
+    import contextlib
+    import io
+
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf), pytest.raises(SystemExit):
+        main(["sweep", "--help"])
+    return buf.getvalue()
 
 
 def test_2d_sweep_with_stick_contact_records_it(tmp_path):
@@ -145,6 +177,8 @@ def test_3d_sweep_with_coulomb_contact_records_the_coefficient(tmp_path):
         (["--model", "3d", "--n-free", "-1"], "--n-free: must be an integer >= 0"),
         (["--model", "3d", "--predict-contact-below", "0"], "--predict-contact-below"),
         (["--model", "3d", "--predict-contact-below", "nan"], "--predict-contact-below"),
+        (["--model", "3d", "--mesh", "fine"], "--mesh: 'fine' unknown; valid: converged, coarse"),
+        (["--mesh", "coarse"], "--mesh: only with --model 3d"),
     ],
 )
 def test_3d_options_that_do_not_fit_are_clear_errors(tmp_path, capsys, extra, needle):
