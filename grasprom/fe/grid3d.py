@@ -56,14 +56,10 @@ class MeshPreset:
     predict_contact_below_t : float or None
         ``SolverSettings.predict_contact_below_t`` (jaw gap in wall thicknesses) unless
         ``--predict-contact-below`` is given; None: off.
-    description : str
-        What the mesh is for, in one line (the help of ``grasprom sweep --mesh`` says the
-        same).
     """
 
     mesh: Mapping[str, float]
     predict_contact_below_t: float | None
-    description: str
 
 
 MESH_PRESETS: Mapping[str, MeshPreset] = MappingProxyType(
@@ -71,20 +67,17 @@ MESH_PRESETS: Mapping[str, MeshPreset] = MappingProxyType(
         "converged": MeshPreset(
             MappingProxyType({"n_layers": 4, "n_circ": 36, "grading": 8.0, "n_free": 6}),
             2.5,
-            "4 x 36 graded 8:1 toward the side fold, 6 axial divisions beyond the jaw, contact "
-            "predicted below gap 2.5 t: the shipped fe_data/default's mesh, within 1.6 % of 4 x 48 "
-            "from gap 20 to 2.8 mm but where the crease sets in (10-30 min a case)",
         ),
         "coarse": MeshPreset(
             MappingProxyType({}),
             None,
-            "the defaults of grasprom.fe.mesh3d.MeshSpec3D (2 x 12 graded 2:1, 9 axial divisions "
-            "beyond the jaw): within 2.2 % of 'converged' in bending, 7-71 % off in the crease "
-            "band (fe_data/3d_2x12; 2-5 min a case)",
         ),
     }
 )
-"""The named 3D meshes of ``--mesh`` (docs/fe-sweeps.md, docs/fe-model.md)."""
+"""The named 3D meshes of ``--mesh``: ``converged`` (4 x 36 graded 8:1, 6 axial divisions beyond
+the jaw, contact predicted below gap 2.5 t: the mesh of the shipped ``fe_data/default``) and
+``coarse`` (the :class:`~grasprom.fe.mesh3d.MeshSpec3D` defaults, 2 x 12: ``fe_data/3d_2x12``,
+converged in bending only); docs/fe-sweeps.md, docs/fe-model.md."""
 
 DEFAULT_MESH_PRESET = "converged"
 """The ``--mesh`` of ``grasprom sweep --model 3d`` when none is given: the shipped data's."""
