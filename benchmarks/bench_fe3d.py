@@ -28,6 +28,7 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py band          # 4 x 48 vs 4 x 36, 240 mm: crease band (~35 min)
     python benchmarks/bench_fe3d.py stall         # 4 x 36: budgeted solves stop when rising
     python benchmarks/bench_fe3d.py factors       # 4 x 36 sweep case: where factorisations go
+    python benchmarks/bench_fe3d.py forwardstall  # sweep case mr 0.8: forward stall rule (~1 h)
 
 Forces in N, gaps in mm.  t = 1.4 mm, Mooney-Rivlin, unless stated.  Timings are wall-clock on
 whatever machine runs this (noisy when shared).
@@ -913,6 +914,42 @@ def bench_stall() -> dict:
     return out
 
 
+def _sweep_case(material: str = "mr", thickness: float = 1.4) -> CaseSpec3D:
+    """The converged sweep's case (``grasprom sweep --model 3d``, the mesh and solver settings
+    of ``fe_data/default``): 4 x 36 graded 8:1, six axial divisions beyond the jaw, 240 mm
+    tube, stick, contact predicted below gap 2.5 t, to the force cap, no landing gaps."""
+    base, _ = _converged_case(1.5)
+    solver = replace(
+        base.solver, land_on_gaps_mm=(), predict_contact_below_mm=0.0, predict_contact_below_t=2.5
+    )
+    return replace(base, material=material, thickness_mm=thickness, solver=solver)
+
+
+def bench_forward_stall(thickness: float = 0.8) -> dict:
+    """Forward steps whose solve stops once its residual keeps rising
+    (``model3d.FORWARD_STALL_RISES``) against running to ``max_newton`` (before), on the
+    sweep's case of mr at ``thickness`` (mm; 0.8: six failed steps in the shipped run): wall
+    time, factorisations, failed steps, whether the tables are equal (~1 h at 0.8 mm)."""
+    spec = _sweep_case("mr", thickness)
+    runs = _before_and_current(spec, "FORWARD_STALL_RISES", None, lambda v: f"forward stall {v}")
+    out = {}
+    for label, (_, r, wall) in runs.items():
+        keys = ("steps", "newton_iterations", "factorizations", "failures")
+        out[label] = {k: r.info[k] for k in keys} | {"wall_s": wall}
+    b, c = out["before"], out["current"]
+    same = runs["before"][1].table.equals(runs["current"][1].table)
+    out["ratio"] = {k: b[k] / c[k] for k in ("wall_s", "factorizations")}
+    out["tables_equal"] = same
+    print(
+        f"  before/current: wall {b['wall_s']:.0f} / {c['wall_s']:.0f} s = "
+        f"{out['ratio']['wall_s']:.2f} x, factorisations {b['factorizations']} / "
+        f"{c['factorizations']}, failed steps {b['failures']} / {c['failures']}; "
+        f"tables equal: {same}",
+        flush=True,
+    )
+    return out
+
+
 class _AttributedSolver:
     """A :func:`grasprom.fe.linsolve.make_solver` solver that logs every factorisation (each
     call; ``resolve`` reuses the factor) with its wall time and where it came from, read off
@@ -1102,6 +1139,7 @@ SECTIONS = {
     "reuse": bench_reuse,
     "band": bench_band,
     "stall": bench_stall,
+    "forwardstall": bench_forward_stall,
     "factors": bench_factors,
 }
 
@@ -1147,6 +1185,8 @@ def main(argv: list[str]) -> None:
             results[name] = bench_reuse(args.closed_gap or 12.0)
         elif name == "factors":
             results[name] = bench_factors(args.closed_gap or 1.5)
+        elif name == "forwardstall":
+            results[name] = bench_forward_stall(float(args.thickness.split(",")[0]))
         else:
             results[name] = SECTIONS[name]()
     text = json.dumps(results, default=str)

@@ -132,3 +132,24 @@ def test_crease_onset_places_a_crossing_within_the_first_back_step_when_asked():
     assert placed.states[0][0] <= h_star and len(placed.states) == 1
     above = crease_onset(solve, lambda s, h: s < h - 0.01, 2.20, 2.20, dh, 2.8, first_step=True)
     assert above.states == []
+
+
+def test_after_a_halved_back_step_the_next_one_doubles_back_instead_of_retrying_the_full_step():
+    """A creased branch that ends at h = 1.607 (no solution above), followed back from 1.5 in
+    steps of 0.05 with three halvings (down to 0.00625), every state below the smooth branch.
+    From 1.60 the steps 0.05, 0.025, 0.0125 fail and 0.00625 lands at 1.60625; the next try is
+    0.0125 (twice the step that worked), then 0.00625, and the branch ends: five failed tries in
+    all, where retrying the full step after the halved one (the rule before: 0.05, 0.025,
+    0.0125, 0.00625 again) cost seven, for the same states."""
+    tried = []
+
+    def solve(state, h):
+        tried.append(round(h, 6))
+        if h > 1.607:
+            raise ArithmeticError("beyond the end of the branch")
+        return h, 1
+
+    out = crease_onset(solve, lambda s, h: True, 1.5, 1.5, 0.05, h_top=2.8, n_halve=3)
+    assert [round(h, 6) for h, _, _ in out.states] == [1.60625, 1.6, 1.55]
+    assert tried == [1.55, 1.6, 1.65, 1.625, 1.6125, 1.60625, 1.61875, 1.6125]
+    assert sum(h > 1.607 for h in tried) == 5

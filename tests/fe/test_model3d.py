@@ -572,8 +572,9 @@ def test_a_step_budget_caps_the_newton_iterations_over_all_passes():
 def test_a_budgeted_solve_stops_when_its_residual_keeps_rising(monkeypatch):
     """A budgeted solve fails once the residual has risen ``STALL_RISES`` iterations in a row
     (the failing back steps of the crease placement on 4 x 36 rose at every iteration until
-    their budget ran out); an unbudgeted one goes on to its iteration limit, and a budgeted one
-    whose residual falls returns the same state as without a budget."""
+    their budget ran out); an unbudgeted one (a forward step) after ``FORWARD_STALL_RISES``
+    rises, or, without that rule, at its iteration limit; a budgeted one whose residual falls
+    returns the same state as without a budget."""
     model3d, st, u0, K0, c0, h = _first_touch_step()
     u, _, _, _, it = model3d._solve_step(st, u0, K0, c0, h)
     ub, _, _, _, itb = model3d._solve_step(st, u0, K0, c0, h, budget=100)
@@ -597,6 +598,12 @@ def test_a_budgeted_solve_stops_when_its_residual_keeps_rising(monkeypatch):
     # six rises after the first residual of a pass (a pass cut at a contact event starts anew)
     assert model3d.STALL_RISES + 1 <= len(seen) < 2 * model3d.STALL_RISES
     seen.clear()
+    assert model3d.STALL_RISES < model3d.FORWARD_STALL_RISES < st.settings.max_newton
+    with pytest.raises(model3d._NewtonFailure, match="rose 15 iterations in a row"):
+        model3d._solve_step(st, u0, K0, c0, h)
+    assert model3d.FORWARD_STALL_RISES + 1 <= len(seen) < 2 * model3d.FORWARD_STALL_RISES
+    seen.clear()
+    monkeypatch.setattr(model3d, "FORWARD_STALL_RISES", None)
     with pytest.raises(model3d._NewtonFailure, match="did not converge"):
         model3d._solve_step(st, u0, K0, c0, h)
     assert len(seen) > st.settings.max_newton
