@@ -897,18 +897,24 @@ def bench_stall() -> dict:
     base, _ = _converged_case(2.8)
     spec = _with_gaps(replace(base, mesh=replace(base.mesh, **BAND_MESHES["4 x 36"])), BAND_GAPS)
     runs = _before_and_current(spec, "STALL_RISES", None, lambda v: f"STALL_RISES {v}")
+    return _compare_runs(runs, ("steps", "newton_iterations", "factorizations"))
+
+
+def _compare_runs(runs: dict, keys: tuple[str, ...]) -> dict:
+    """Summary of :func:`_before_and_current`'s runs: the ``keys`` of each run's info, wall
+    time, the before/current ratios and whether the tables are equal (printed too)."""
     out = {}
     for label, (_, r, wall) in runs.items():
-        out[label] = {k: r.info[k] for k in ("steps", "newton_iterations", "factorizations")}
-        out[label]["wall_s"] = wall
+        out[label] = {k: r.info[k] for k in keys} | {"wall_s": wall}
     b, c = out["before"], out["current"]
     same = runs["before"][1].table.equals(runs["current"][1].table)
     out["ratio"] = {k: b[k] / c[k] for k in ("wall_s", "factorizations")}
     out["tables_equal"] = same
+    extra = "".join(f", {k} {b[k]} / {c[k]}" for k in keys if k not in ("factorizations",))
     print(
         f"  before/current: wall {b['wall_s']:.0f} / {c['wall_s']:.0f} s = "
         f"{out['ratio']['wall_s']:.2f} x, factorisations {b['factorizations']} / "
-        f"{c['factorizations']}; tables equal: {same}",
+        f"{c['factorizations']}{extra}; tables equal: {same}",
         flush=True,
     )
     return out
@@ -932,22 +938,7 @@ def bench_forward_stall(thickness: float = 0.8) -> dict:
     time, factorisations, failed steps, whether the tables are equal (~1 h at 0.8 mm)."""
     spec = _sweep_case("mr", thickness)
     runs = _before_and_current(spec, "FORWARD_STALL_RISES", None, lambda v: f"forward stall {v}")
-    out = {}
-    for label, (_, r, wall) in runs.items():
-        keys = ("steps", "newton_iterations", "factorizations", "failures")
-        out[label] = {k: r.info[k] for k in keys} | {"wall_s": wall}
-    b, c = out["before"], out["current"]
-    same = runs["before"][1].table.equals(runs["current"][1].table)
-    out["ratio"] = {k: b[k] / c[k] for k in ("wall_s", "factorizations")}
-    out["tables_equal"] = same
-    print(
-        f"  before/current: wall {b['wall_s']:.0f} / {c['wall_s']:.0f} s = "
-        f"{out['ratio']['wall_s']:.2f} x, factorisations {b['factorizations']} / "
-        f"{c['factorizations']}, failed steps {b['failures']} / {c['failures']}; "
-        f"tables equal: {same}",
-        flush=True,
-    )
-    return out
+    return _compare_runs(runs, ("steps", "newton_iterations", "factorizations", "failures"))
 
 
 class _AttributedSolver:
