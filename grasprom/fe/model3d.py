@@ -1097,7 +1097,12 @@ def _solve_step(
     """
     iters = 0
     loose = max(ACTIVE_SET_RTOL, st.settings.rtol)
-    stall = STALL_RISES if budget is not None else (FORWARD_STALL_RISES if prox is None else None)
+    if budget is not None:  # a back step of the crease placement, a plain attempt of _relax
+        stall = STALL_RISES
+    elif prox is None:  # a forward step
+        stall = FORWARD_STALL_RISES
+    else:  # a proximal step of _relax: strongly convex, runs to max_newton
+        stall = None
     exact = False
     coulomb = c.normal is not None  # Coulomb contact (:func:`_initial_contact`)
     last = None  # (u, f, K) of the last pass, to start the next one without reassembling
