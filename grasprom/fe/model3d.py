@@ -39,6 +39,8 @@ import pandas as pd
 import scipy.sparse as sp
 
 from grasprom.fe.crease import (
+    SNAP_FORCE_DROP,
+    SNAP_RELEASE_FRACTION,
     CreaseOnset,
     crease_onset,
     hermite_energy,
@@ -1464,6 +1466,29 @@ def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=N
     return CaseResult(table=table, status=status, info=info)
 
 
+def solver_rules() -> dict:
+    """The module constants that choose the solution path (``fe_info.solver_rules`` of a case
+    sidecar, beside ``solver``, the :class:`SolverSettings` of the spec): a case re-run with
+    other values may take another path through the crease band, whose states differ by
+    round-off-sized changes (docs/fe-model.md)."""
+    return {
+        "assembly_block": ASSEMBLY_BLOCK,
+        "predictor_reuses_factor": PREDICTOR_REUSES_FACTOR,
+        "active_set_rtol": ACTIVE_SET_RTOL,
+        "stall_rises": STALL_RISES,
+        "forward_stall_rises": FORWARD_STALL_RISES,
+        "touch_bisections": TOUCH_BISECTIONS,
+        "friction_normal_rtol": FRICTION_NORMAL_RTOL,
+        "friction_eps_mm": FRICTION_EPS_MM,
+        "crease_bisections": CREASE_BISECTIONS,
+        "crease_back_halvings": CREASE_BACK_HALVINGS,
+        "crease_back_budget": CREASE_BACK_BUDGET,
+        "relax_plain_budget": RELAX_PLAIN_BUDGET,
+        "snap_force_drop": SNAP_FORCE_DROP,
+        "snap_release_fraction": SNAP_RELEASE_FRACTION,
+    }
+
+
 def _info(spec, st: _Setup, table, reason, total_newton, n_fail, fail_log, h, t0) -> dict:
     d = st.disc
     return {
@@ -1482,6 +1507,7 @@ def _info(spec, st: _Setup, table, reason, total_newton, n_fail, fail_log, h, t0
         "material_constants": st.material.constants(),
         "mesh": asdict(spec.mesh),
         "solver": asdict(spec.solver),
+        "solver_rules": solver_rules(),
         "linear_solver": solver_name(st.solver),
         "contact": spec.contact,
         "tube_length_mm": spec.tube_length_mm,

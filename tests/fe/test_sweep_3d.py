@@ -43,6 +43,11 @@ def test_3d_sweep_writes_the_contract_and_the_model_keys(tmp_path, capsys):
     assert meta["model"] == "3d" and meta["contact"] == "stick"
     assert meta["tube_length_mm"] == 30.0 and meta["ends"] == "free"
     assert meta["status"] == "complete" and meta["max_force_N"] > 0
+    # the solver's path rules beside its settings (module constants: a re-run with others may
+    # take another path through the crease band)
+    rules = meta["fe_info"]["solver_rules"]
+    assert rules["forward_stall_rises"] == 15 and rules["stall_rises"] == 6
+    assert rules["crease_back_halvings"] == 3 and rules["active_set_rtol"] == 0.01
     # the deformed shape at the last gap, for the report's picture
     (sec,) = meta["fe_info"]["sections"]
     assert sec["gap_mm"] == pytest.approx(table["gap_mm"].iloc[-1])
