@@ -68,9 +68,9 @@ def _force_at(table, gaps=GAPS, col: str = "force_N") -> dict:
     return out
 
 
-def _run(spec: CaseSpec3D, label: str, solver: str = "auto"):
+def _run(spec: CaseSpec3D, label: str, solver: str = "auto", progress=None):
     t0 = time.perf_counter()
-    res = run_case_3d(spec, solver=solver)
+    res = run_case_3d(spec, solver=solver, progress=progress)
     i = res.info
     print(
         f"[{label}] {res.status} ({i['status_reason']}): dofs {i['dofs']}, steps {i['steps']}, "
@@ -988,13 +988,28 @@ def bench_factors(closed_gap: float = 1.5) -> dict:
     divisions beyond the jaw, 240 mm tube, mr, t = 1.4, stick, contact predicted below 2.5 t,
     no landing gaps: the case ``grasprom sweep`` runs; ~15 min): count and seconds by phase
     (forward steps, crease placement, relaxation) and kind (predictor, Newton direction,
-    Levenberg shift), those spent in solves that failed, and the assembly's share."""
+    Levenberg shift), those spent in solves that failed, and the assembly's share; then the
+    wall time by region of the stroke (:func:`_regions`)."""
     from grasprom.fe import model3d
 
     spec = replace(_sweep_case("mr", T), closed_gap_mm=closed_gap)
     solvers: list[_AttributedSolver] = []
     make, solve_step, assemble = model3d.make_solver, model3d._solve_step, model3d.assemble
+    crease_onset = model3d._crease_onset
     assembly = {"calls": 0, "tangents": 0, "s": 0.0}
+    steps: list[list] = []  # [gap (mm), wall time at its end (s), crease placement in it (s)]
+    placing = [0.0]
+
+    def placed(*args, **kw):
+        t0 = time.perf_counter()
+        try:
+            return crease_onset(*args, **kw)
+        finally:
+            placing[0] += time.perf_counter() - t0
+
+    def progress(gap, force):
+        steps.append([gap, time.perf_counter(), placing[0]])
+        placing[0] = 0.0
 
     def attributed(name: str = "auto"):
         solvers.append(_AttributedSolver(make(name)))
@@ -1020,12 +1035,14 @@ def bench_factors(closed_gap: float = 1.5) -> dict:
             assembly["s"] += time.perf_counter() - t0
 
     model3d.make_solver, model3d._solve_step, model3d.assemble = attributed, marked, timed
+    model3d._crease_onset = placed
     try:
         t0 = time.perf_counter()
-        r = _run(spec, "the sweep's 4 x 36 case, factorisations attributed")
+        r = _run(spec, "the sweep's 4 x 36 case, factorisations attributed", progress=progress)
         wall = time.perf_counter() - t0
     finally:
         model3d.make_solver, model3d._solve_step, model3d.assemble = make, solve_step, assemble
+        model3d._crease_onset = crease_onset
     log = solvers[0].log
     out: dict = {"wall_s": wall, "newton_iterations": r.info["newton_iterations"]}
     out |= {"steps": r.info["steps"], "factorizations": len(log), "assembly": assembly}
@@ -1050,6 +1067,36 @@ def bench_factors(closed_gap: float = 1.5) -> dict:
         f"{wall:.0f} s wall",
         flush=True,
     )
+    out["regions"] = _regions(steps, t0, spec.thickness_mm)
+    return out
+
+
+def _regions(steps: list[list], t0: float, t: float) -> dict:
+    """Wall time (s) and steps by region of the stroke, from ``[gap, end time, placement s]``
+    per converged forward step (the placement's time is split off its step): bending (gap
+    above 4 t), the crease band (2 t to 4 t), the crease placements in it, and compaction (the
+    walls meet at gap 2 t; ``t`` the wall thickness, mm).  Printed as a table."""
+    out = {k: {"steps": 0, "s": 0.0} for k in ("bending", "band", "placements", "compaction")}
+    last = t0
+    for gap, end, placement in steps:
+        region = "bending" if gap > 4 * t else "band" if gap > 2 * t else "compaction"
+        out[region]["steps"] += 1
+        out[region]["s"] += end - last - placement
+        if placement > 0:
+            out["placements"]["steps"] += 1
+            out["placements"]["s"] += placement
+        last = end
+    total = sum(v["s"] for v in out.values())
+    print(f"  {'region':34s} {'steps':>6s} {'s':>7s} {'share':>6s}")
+    labels = {
+        "bending": f"bending (gap > 4 t = {4 * t:g} mm)",
+        "band": f"crease band ({2 * t:g}-{4 * t:g} mm)",
+        "placements": "crease placements (Maxwell)",
+        "compaction": f"compaction (gap <= 2 t = {2 * t:g} mm)",
+    }
+    for k, v in out.items():
+        share = v["s"] / total if total > 0 else 0.0
+        print(f"  {labels[k]:34s} {v['steps']:6d} {v['s']:7.1f} {100 * share:5.1f} %", flush=True)
     return out
 
 
