@@ -1470,7 +1470,14 @@ def solver_rules() -> dict:
     """The module constants that choose the solution path (``fe_info.solver_rules`` of a case
     sidecar, beside ``solver``, the :class:`SolverSettings` of the spec): a case re-run with
     other values may take another path through the crease band, whose states differ by
-    round-off-sized changes (docs/fe-model.md)."""
+    round-off-sized changes (docs/fe-model.md).
+
+    Returns
+    -------
+    dict
+        Lower-case constant name -> value (counts, tolerances as fractions of the force
+        scale or of a step's work, ``friction_eps_mm`` in mm, ``assembly_block`` in elements).
+    """
     return {
         "assembly_block": ASSEMBLY_BLOCK,
         "predictor_reuses_factor": PREDICTOR_REUSES_FACTOR,
