@@ -1475,8 +1475,9 @@ def solver_rules() -> dict:
     Returns
     -------
     dict
-        Lower-case constant name -> value (counts, tolerances as fractions of the force
-        scale or of a step's work, ``friction_eps_mm`` in mm, ``assembly_block`` in elements).
+        Lower-case constant name -> value: counts, relative tolerances (of a force or of a
+        step's work; each constant's comment says which), ``friction_eps_mm`` in mm,
+        ``assembly_block`` in elements.
     """
     return {
         "assembly_block": ASSEMBLY_BLOCK,
