@@ -1084,7 +1084,13 @@ def _regions(steps: list[list], t0: float, t: float) -> dict:
     per converged forward step (the placement's time is split off its step): bending (gap
     above 4 t), the crease band (2 t to 4 t), the crease placements in it, and compaction (the
     walls meet at gap 2 t; ``t`` the wall thickness, mm).  Printed as a table."""
-    out = {k: {"steps": 0, "s": 0.0} for k in ("bending", "band", "placements", "compaction")}
+    labels = {
+        "bending": f"bending (gap > 4 t = {4 * t:g} mm)",
+        "band": f"crease band ({2 * t:g}-{4 * t:g} mm)",
+        "placements": "crease placements (Maxwell)",
+        "compaction": f"compaction (gap <= 2 t = {2 * t:g} mm)",
+    }
+    out = {k: {"steps": 0, "s": 0.0} for k in labels}
     last = t0
     for gap, end, placement in steps:
         region = "bending" if gap > 4 * t else "band" if gap > 2 * t else "compaction"
@@ -1096,12 +1102,6 @@ def _regions(steps: list[list], t0: float, t: float) -> dict:
         last = end
     total = sum(v["s"] for v in out.values())
     print(f"  {'region':34s} {'steps':>6s} {'s':>7s} {'share':>6s}")
-    labels = {
-        "bending": f"bending (gap > 4 t = {4 * t:g} mm)",
-        "band": f"crease band ({2 * t:g}-{4 * t:g} mm)",
-        "placements": "crease placements (Maxwell)",
-        "compaction": f"compaction (gap <= 2 t = {2 * t:g} mm)",
-    }
     for k, v in out.items():
         share = v["s"] / total if total > 0 else 0.0
         print(f"  {labels[k]:34s} {v['steps']:6d} {v['s']:7.1f} {100 * share:5.1f} %", flush=True)
