@@ -259,6 +259,12 @@ def _add_model_options(s: argparse.ArgumentParser) -> None:
             "constraint (default of grasprom.fe.model3d)"
         ),
     )
+    _add_mesh3d_options(s)
+
+
+def _add_mesh3d_options(s: argparse.ArgumentParser) -> None:
+    """The 3D mesh options of ``grasprom sweep``: axial divisions, the far zone, predicted
+    contact and the named mesh."""
     s.add_argument(
         "--n-jaw",
         type=int,
@@ -273,6 +279,15 @@ def _add_model_options(s: argparse.ArgumentParser) -> None:
         metavar="N",
         help="3d: axial mesh divisions beyond the jaw, growing toward the tube end (default of "
         "--mesh)",
+    )
+    s.add_argument(
+        "--far-coarsening",
+        type=int,
+        default=None,
+        metavar="K",
+        help="3d: beyond the fine zone over the jaw, 1/K of the layers and circumferential "
+        "divisions (K divides both; the zones are tied at their interface plane): about 2.5x "
+        "fewer unknowns at K = 2 (default of --mesh: 1, one cross-section along the tube)",
     )
     s.add_argument(
         "--predict-contact-below",
@@ -530,6 +545,7 @@ def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
         args.n_free,
         args.predict_contact_below,
         args.mesh,
+        far_coarsening=args.far_coarsening,
     )
     try:
         check_options(args.model, opts3d)

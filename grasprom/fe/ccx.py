@@ -373,6 +373,10 @@ def write_deck(
         raise ValueError(f"invalid gap_end_mm={gap_end_mm!r}: between 0 and {D} mm")
     if spec.plane_strain and spec.jaw_length_mm < spec.tube_length_mm:
         raise ValueError("plane_strain=True needs a jaw at least as long as the tube")
+    if spec.mesh.far_coarsening != 1:
+        raise ValueError(
+            "the CalculiX deck has one cross-section along the tube: far_coarsening must be 1"
+        )
     stroke = 0.5 * (D - gap_end_mm)
     P, ids, ne = _tube_nodes(spec)
     conn, layer = _tube_elements(ids, ne)

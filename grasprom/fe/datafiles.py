@@ -192,13 +192,30 @@ def sha256_file(path: str | os.PathLike[str]) -> str:
     return h.hexdigest()
 
 
+NEUTRAL_FIELDS = (("mesh", "far_coarsening", 1),)
+"""``(group, field, value)`` of spec fields added after data was written without them: at this
+value a field is left out of :func:`spec_record` (the value the files written before it were
+computed with), so those files stay current for a resumed sweep and for the manifest checks."""
+
+
+def spec_record(spec: CaseSpec) -> dict[str, Any]:
+    """``asdict(spec)`` without the :data:`NEUTRAL_FIELDS` that hold their neutral value: what
+    the sidecar records as ``spec`` and :func:`input_hash` hashes."""
+    d = dataclasses.asdict(spec)
+    for group, name, value in NEUTRAL_FIELDS:
+        sub = d.get(group)
+        if isinstance(sub, dict) and name in sub and sub[name] == value:
+            del sub[name]
+    return d
+
+
 def input_hash(spec: CaseSpec) -> str:
-    """Hash of a case's inputs: SHA-256 of the canonical JSON of ``asdict(spec)``.
+    """Hash of a case's inputs: SHA-256 of the canonical JSON of :func:`spec_record`.
 
     Two specs with equal fields (material, geometry, mesh, solver settings) hash equally;
     this is what a resumed sweep compares against the finished files on disk.
     """
-    return sha256_bytes(canonical_json(dataclasses.asdict(spec)).encode())
+    return sha256_bytes(canonical_json(spec_record(spec)).encode())
 
 
 # --------------------------------------------------------------------------- cases
@@ -311,7 +328,7 @@ def _sidecar(
     """The JSON sidecar of a case whose CSV holds ``csv_bytes`` (units in ``parameter_units``)."""
     table = result.table
     info = dict(result.info or {})
-    spec_d = dataclasses.asdict(spec)
+    spec_d = spec_record(spec)
     return {
         "schema_version": SCHEMA_VERSION,
         "stem": spec_stem(spec),
@@ -530,8 +547,8 @@ def write_error(directory: str | os.PathLike[str], stem: str, message: str, tb: 
 
 
 def sweep_parameters(spec: CaseSpec) -> dict[str, Any]:
-    """The parameters a sweep shares across its cases: ``asdict(spec)`` minus the grid axes."""
-    d = dataclasses.asdict(spec)
+    """The parameters a sweep shares across its cases: :func:`spec_record` minus the grid axes."""
+    d = spec_record(spec)
     d.pop("material")
     d.pop("thickness_mm")
     return d

@@ -110,6 +110,9 @@ class Model3DOptions:
     mesh : str or None
         A name of :data:`MESH_PRESETS` (None: :data:`DEFAULT_MESH_PRESET`); the mesh options
         given override it one by one.
+    far_coarsening : int or None
+        Cross-section coarsening beyond the fine zone over the jaw
+        (:class:`~grasprom.fe.mesh3d.MeshSpec3D` ``far_coarsening``; 1 = one cross-section).
     """
 
     contact: str | None = None
@@ -120,6 +123,7 @@ class Model3DOptions:
     n_free: int | None = None
     predict_contact_below_t: float | None = None
     mesh: str | None = None
+    far_coarsening: int | None = None
 
     def given_3d_only(self) -> list[str]:
         """The CLI names of the options given that only the 3D model takes."""
@@ -130,6 +134,7 @@ class Model3DOptions:
             ("--n-free", self.n_free),
             ("--predict-contact-below", self.predict_contact_below_t),
             ("--mesh", self.mesh),
+            ("--far-coarsening", self.far_coarsening),
         )
         return [name for name, v in flags if v is not None]
 
@@ -165,9 +170,10 @@ def check_options(model: str, opts: Model3DOptions) -> None:
 
 
 def _check_axial(opts: Model3DOptions) -> None:
-    """``--n-jaw`` >= 1 and ``--n-free`` >= 0 (integers); ``--predict-contact-below`` a
-    multiple of the wall thickness in (0, 100]."""
-    for name, v, least in (("--n-jaw", opts.n_jaw, 1), ("--n-free", opts.n_free, 0)):
+    """``--n-jaw`` >= 1, ``--n-free`` >= 0 and ``--far-coarsening`` >= 1 (integers);
+    ``--predict-contact-below`` a multiple of the wall thickness in (0, 100]."""
+    ints = (("--n-jaw", opts.n_jaw, 1), ("--n-free", opts.n_free, 0))
+    for name, v, least in ints + (("--far-coarsening", opts.far_coarsening, 1),):
         if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v < least):
             raise SweepInputError(f"{name}: must be an integer >= {least}, got {v!r}")
     m = opts.predict_contact_below_t
@@ -239,10 +245,15 @@ def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, float])
         )
     extra = {k: v for k, v in dataclasses.asdict(opts).items() if v is not None}
     extra["friction"] = float(opts.friction) if opts.contact == "coulomb" else 0.0
-    axial = {k: extra.pop(k) for k in ("n_jaw", "n_free") if k in extra}
+    axial = {k: extra.pop(k) for k in ("n_jaw", "n_free", "far_coarsening") if k in extra}
     below_t = extra.pop("predict_contact_below_t", preset.predict_contact_below_t)
     extra.pop("mesh", None)
-    mesh3d = MeshSpec3D(**{**mesh, **axial})
+    try:
+        mesh3d = MeshSpec3D(**{**mesh, **axial})
+    except ValueError as exc:
+        if "far_coarsening" not in axial:
+            raise
+        raise SweepInputError(f"--far-coarsening: {exc}") from exc
     out = []
     for s in specs:
         spec = CaseSpec3D(

@@ -5,12 +5,15 @@ The model domain is the tube wall ``R - t <= r <= R``, ``0 <= theta <= 90 deg`` 
 Element layers follow the cylindrical coordinates ``(r, theta, z)``; the trilinear hexahedra are
 cut into 27-node triquadratic (Q2) elements (skfem ``ElementHex2``), with a discontinuous
 linear (P1, 4 functions) or constant (P0) dilatation/pressure per element, condensed.  Q2/P1 is
-the inf-sup stable Crouzeix-Raviart pair on hexahedra.
+the inf-sup stable Crouzeix-Raviart pair on hexahedra.  With ``MeshSpec3D.far_coarsening`` > 1
+the tube beyond the fine zone over the jaw has a coarser cross-section, and the fine zone's
+nodes on the interface plane are tied to the coarse face (hanging nodes, eliminated).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any, NamedTuple
 
 import numpy as np
 import scipy.optimize as so
@@ -55,6 +58,16 @@ class MeshSpec3D:
     radial_grading : float
         Ratio of the outermost to the innermost layer thickness (1 = uniform; > 1 puts thin
         layers at the inner wall, where the fold's inner surface creases, as the 2D mesh).
+    far_coarsening : int
+        Beyond the fine zone (``z > jaw_length/2 + fine_margin_mm``) the cross-section has
+        ``n_layers / k`` layers and ``n_circ / k`` circumferential divisions (every k-th layer
+        and circumferential boundary of the fine zone's, so the grading is kept), ``k`` this
+        factor; 1 (default) is one cross-section along the whole tube.  The two zones meet at a
+        plane where the fine face's nodes are tied to the coarse face (their displacement is the
+        coarse face's quadratic interpolation; the tied nodes are eliminated): a linear
+        displacement field passes the interface exactly.  The folds and the contact are in the
+        fine zone; beyond it the tube only ovalises, which the coarse cross-section resolves
+        (``benchmarks/bench_fe3d.py transition``).
     """
 
     n_layers: int = 2
@@ -66,6 +79,7 @@ class MeshSpec3D:
     element: str = "Q2/P1"
     beta: float = 0.05
     radial_grading: float = 1.0
+    far_coarsening: int = 1
 
     def __post_init__(self) -> None:
         for name, least in (("n_layers", 1), ("n_circ", 2), ("n_jaw", 1), ("n_free", 0)):
@@ -82,6 +96,14 @@ class MeshSpec3D:
                 raise ValueError(f"invalid {name}={v!r}: a ratio of element sizes, > 0")
         if not (np.isfinite(self.beta) and 0.0 <= self.beta <= 1.0):
             raise ValueError(f"invalid beta={self.beta!r}: a share in [0, 1]")
+        k = self.far_coarsening
+        if isinstance(k, bool) or not isinstance(k, int | np.integer) or k < 1:
+            raise ValueError(f"invalid far_coarsening={k!r}: an integer >= 1")
+        if self.n_layers % k or self.n_circ % k:
+            raise ValueError(
+                f"far_coarsening={k} must divide n_layers={self.n_layers} and "
+                f"n_circ={self.n_circ} (the coarse zone takes every {k}-th boundary)"
+            )
 
 
 def axial_nodes(half_length: float, z_fine: float, n_jaw: int, n_free: int) -> np.ndarray:
@@ -113,18 +135,46 @@ def ring_nodes(outer_radius: float, thickness: float, mesh: MeshSpec3D):
     return r, 0.5 * np.pi * graded_fractions(nc, mesh.grading)
 
 
-def tube_mesh(outer_radius: float, thickness: float, z_nodes: np.ndarray, mesh: MeshSpec3D):
-    """Hexahedral mesh (skfem ``MeshHex``) of the 1/8 tube on the given axial nodes (mm)."""
+def _tube_points(r: np.ndarray, th: np.ndarray, z_nodes: np.ndarray):
+    """Cartesian vertices (3, n) and hexahedra (8, ne) of the tensor mesh on radii ``r``,
+    angles ``th`` (rad) and axial positions ``z_nodes`` (mm)."""
     import skfem
 
-    r, th = ring_nodes(outer_radius, thickness, mesh)
     m = skfem.MeshHex.init_tensor(r, th, np.asarray(z_nodes, dtype=float))
     rho, t, z = m.p
     x = rho * np.cos(t)
     y = rho * np.sin(t)
     x[np.isclose(t, 0.5 * np.pi)] = 0.0
     y[t == 0.0] = 0.0
-    return skfem.MeshHex(np.vstack([x, y, z]), m.t)
+    return np.vstack([x, y, z]), m.t
+
+
+def tube_mesh(outer_radius: float, thickness: float, z_nodes: np.ndarray, mesh: MeshSpec3D):
+    """Hexahedral mesh (skfem ``MeshHex``) of the 1/8 tube on the given axial nodes (mm)."""
+    import skfem
+
+    r, th = ring_nodes(outer_radius, thickness, mesh)
+    return skfem.MeshHex(*_tube_points(r, th, z_nodes))
+
+
+def transition_mesh(
+    outer_radius: float, thickness: float, z_nodes: np.ndarray, mesh: MeshSpec3D, n_fine: int
+):
+    """The 1/8 tube meshed finely over the first ``n_fine`` axial divisions and with the
+    cross-section coarsened ``mesh.far_coarsening`` times beyond (mm).
+
+    Returns the skfem ``MeshHex`` of both zones -- disjoint: the vertices of the interface plane
+    appear once in each zone -- and the number of fine-zone elements (numbered first).
+    """
+    import skfem
+
+    r, th = ring_nodes(outer_radius, thickness, mesh)
+    k = mesh.far_coarsening
+    z = np.asarray(z_nodes, dtype=float)
+    pf, tf = _tube_points(r, th, z[: n_fine + 1])
+    pc, tc = _tube_points(r[::k], th[::k], z[n_fine:])
+    m = skfem.MeshHex(np.hstack([pf, pc]), np.hstack([tf, tc + pf.shape[1]]))
+    return m, tf.shape[1]
 
 
 @dataclass(frozen=True)
@@ -155,6 +205,30 @@ class Disc3D:
     grads_t: np.ndarray  # (ne, 27, nq * 3) dN_b/dX_l at [e, b, (q l)] (the tangent's layout)
     scatter_t: np.ndarray  # CSR position of each element-matrix entry in the order [e, b, i, k, a]
     beta: float = 0.0  # pointwise share of the volumetric energy
+    # with a coarsened far zone (MeshSpec3D.far_coarsening > 1): all mesh nodes, the tied ones
+    # included, for output (VTU); None when every mesh node is a solver node
+    out_X: np.ndarray | None = None  # (n_out, 3) reference positions
+    out_cells: np.ndarray | None = None  # (ne, 27) node ids into out_X, skfem's Hex2 order
+    out_expand: Any = None  # scipy.sparse (n_out, nnode): nodal values -> all mesh nodes
+
+    def output_mesh(self, u: np.ndarray):
+        """Reference positions (mm), displacements (mm) and 27-node cells of every mesh node.
+
+        Parameters
+        ----------
+        u : numpy.ndarray
+            Solver displacements (mm), ``3 n_nodes``.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            ``(X, displacement, cells)``: ``(n, 3)``, ``(n, 3)``, ``(ne, 27)``; the nodes tied at
+            a zone interface get the coarse face's interpolation.
+        """
+        disp = np.asarray(u, dtype=float).reshape(-1, 3)
+        if self.out_X is None:
+            return self.X, disp, self.edofs[:, ::3] // 3
+        return self.out_X, np.asarray(self.out_expand @ disp), self.out_cells
 
 
 def _pressure_basis(basis, m, dx: np.ndarray, kind: str):
@@ -195,6 +269,175 @@ def _csr_maps(edofs: np.ndarray, ndof: int):
     return urows, ucols, scatter.ravel(), indptr, diag_pos, transpose_pos
 
 
+def _lagrange3(x: np.ndarray) -> np.ndarray:
+    """The three 1D quadratic Lagrange functions on the nodes -1, 0, 1 at ``x`` (..., 3)."""
+    return np.stack([0.5 * x * (x - 1.0), (1.0 - x) * (1.0 + x), 0.5 * x * (x + 1.0)], axis=-1)
+
+
+def _bilinear_inverse(corners: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """Reference coordinates ``(xi, eta)`` of points ``pts`` (n, 2) of the plane quadrilateral
+    with ``corners[i, j]`` at ``xi = 2 i - 1``, ``eta = 2 j - 1`` (Newton; points slightly
+    outside the quadrilateral, e.g. on the arc beyond a chord, extrapolate)."""
+    c = corners.reshape(4, 2)  # (0,0) (0,1) (1,0) (1,1)
+    sx = np.array([-1.0, -1.0, 1.0, 1.0])
+    se = np.array([-1.0, 1.0, -1.0, 1.0])
+    xe = np.zeros((len(pts), 2))
+    for _ in range(50):
+        a, b = xe[:, :1], xe[:, 1:]
+        N = 0.25 * (1 + sx * a) * (1 + se * b)  # (n, 4)
+        r = pts - N @ c
+        Ja = (0.25 * sx * (1 + se * b)) @ c  # d x / d xi, (n, 2)
+        Jb = (0.25 * se * (1 + sx * a)) @ c
+        det = Ja[:, 0] * Jb[:, 1] - Ja[:, 1] * Jb[:, 0]
+        xe[:, 0] += (r[:, 0] * Jb[:, 1] - r[:, 1] * Jb[:, 0]) / det
+        xe[:, 1] += (Ja[:, 0] * r[:, 1] - Ja[:, 1] * r[:, 0]) / det
+        if np.abs(r).max() <= 1e-12 * np.abs(c).max():
+            return xe
+    raise RuntimeError("zone interface: the inverse map of a coarse face did not converge")
+
+
+def _polar_key(xy: np.ndarray, scale: float) -> np.ndarray:
+    """Rounded (radius, angle) of points, to sort and match positions on the 1/8 ring."""
+    radius = np.hypot(xy[:, 0], xy[:, 1]) / scale
+    return np.round(np.stack([radius, np.arctan2(xy[:, 1], xy[:, 0])]), 9)
+
+
+def _interface_ties(
+    m, sdofs: np.ndarray, X: np.ndarray, n_fine: int, z_if: float, tol: float, wall: np.ndarray
+):
+    """Tie the fine zone's nodes on the plane ``z = z_if`` to the coarse zone's face.
+
+    For every fine element with a face on the plane: the local slots of its 9 face nodes, the 9
+    nodes of the coarse face that contains it, and the weights ``W[s, m]`` (the coarse face's
+    2D quadratic Lagrange functions at the fine nodes, in the coarse face's own bilinear
+    reference coordinates, so a linear field is reproduced exactly); and ``Wa``, the same with
+    the radial coordinate of a wall node set to its wall (``wall`` per node: 1 outer, -1 inner,
+    0 neither), which passes a wall node's outer area on to the nodes of that wall only (the
+    fine nodes on the wall lie off the coarse face's chords, where ``W`` reaches into the next
+    layer).
+
+    Returns
+    -------
+    tuple
+        ``(elements (n,), slots (n, 9), masters (n, 9), W (n, 9, 9), Wa (n, 9, 9))``; node
+        ids of ``X``.
+    """
+    on = np.abs(X[:, 2] - z_if) < tol
+    face = on[sdofs].sum(axis=1) == 9
+    fine = np.flatnonzero(face[:n_fine])
+    coarse = n_fine + np.flatnonzero(face[n_fine:])
+    scale = np.abs(X[:, :2]).max()
+    # each coarse face by the (radius, angle) box of its 4 vertices
+    vc = m.p[:2, m.t[:, coarse]].transpose(2, 1, 0)  # (nc, 8, 2)
+    vz = m.p[2, m.t[:, coarse]].T  # (nc, 8)
+    boxes = []
+    for verts, zs in zip(vc, vz):
+        v = verts[np.abs(zs - z_if) < tol]
+        key = _polar_key(v, scale)
+        boxes.append((key.min(axis=1), key.max(axis=1), v[np.lexsort((key[1], key[0]))]))
+    slots = np.empty((fine.size, 9), dtype=np.int64)
+    masters = np.empty((fine.size, 9), dtype=np.int64)
+    W = np.empty((fine.size, 9, 9))
+    Wa = np.empty((fine.size, 9, 9))
+    for i, e in enumerate(fine):
+        loc = np.flatnonzero(on[sdofs[e]])
+        centre = _polar_key(X[sdofs[e, loc], :2].mean(axis=0, keepdims=True), scale)[:, 0]
+        hit = [j for j, (lo, hi, _) in enumerate(boxes) if np.all((lo <= centre) & (centre <= hi))]
+        if len(hit) != 1:
+            raise RuntimeError(f"zone interface: fine face {e} lies in {len(hit)} coarse faces")
+        j = hit[0]
+        mloc = np.flatnonzero(on[sdofs[coarse[j]]])
+        corners = boxes[j][2].reshape(2, 2, 2)
+        xm = np.round(_bilinear_inverse(corners, X[sdofs[coarse[j], mloc], :2])).astype(int) + 1
+        xs = _bilinear_inverse(corners, X[sdofs[e, loc], :2])
+        W[i] = _lagrange3(xs[:, 0])[:, xm[:, 0]] * _lagrange3(xs[:, 1])[:, xm[:, 1]]
+        # the wall share: a node of the inner or outer wall on that wall of the coarse face
+        xr = np.where(wall[sdofs[e, loc]] != 0, wall[sdofs[e, loc]], xs[:, 0])
+        Wa[i] = _lagrange3(xr)[:, xm[:, 0]] * _lagrange3(xs[:, 1])[:, xm[:, 1]]
+        slots[i] = loc
+        masters[i] = sdofs[coarse[j], mloc]
+    return fine, slots, masters, W, Wa
+
+
+def _eliminate_ties(grads, sdofs, X, outer_area_all, ties):
+    """Express the tied nodes by their masters: element gradients of the fine interface
+    elements recombined (``dN_m = sum_s W[s, m] dN_s``), the tied nodes' outer area passed on
+    to the wall's masters (``Wa``), the tied nodes removed and the rest renumbered.
+
+    Returns ``(grads, node ids per element, kept node ids, area of all nodes, expand)`` where
+    ``expand`` maps the kept nodes' values to all nodes (the tied ones interpolated).
+    """
+    import scipy.sparse as sp
+
+    elements, slots, masters, W, Wa = ties
+    grads = grads.copy()
+    sd = sdofs.copy()
+    for e, loc, mst, w in zip(elements, slots, masters, W):
+        grads[e][:, loc, :] = np.einsum("sm,qsj->qmj", w, grads[e][:, loc, :])
+        sd[e, loc] = mst
+    # one weight row per tied node (a node shared by two fine faces has the same interpolation)
+    tied, first = np.unique(sdofs[elements[:, None], slots].ravel(), return_index=True)
+    rows_m = np.repeat(masters, 9, axis=0)[first]
+    rows_w = W.reshape(-1, 9)[first]
+    area = np.asarray(outer_area_all, dtype=float).copy()
+    np.add.at(area, rows_m.ravel(), (Wa.reshape(-1, 9)[first] * area[tied, None]).ravel())
+    area[tied] = 0.0
+    n_all = X.shape[0]
+    keep = np.setdiff1d(np.arange(n_all), tied)
+    renum = np.full(n_all, -1)
+    renum[keep] = np.arange(keep.size)
+    ri = np.concatenate([keep, np.repeat(tied, 9)])
+    ci = np.concatenate([renum[keep], renum[rows_m.ravel()]])
+    vals = np.concatenate([np.ones(keep.size), rows_w.ravel()])
+    expand = sp.csr_matrix((vals, (ri, ci)), shape=(n_all, keep.size))
+    return grads, renum[sd], keep, area, expand
+
+
+def _wall_facets(m, outer_radius: float, inner_radius: float, tol: float):
+    """The boundary facets on the outer and on the inner wall (mm): those whose vertices all
+    are (the chord midpoint of a coarse circumferential element sags below the wall by
+    ``R (1 - cos(dtheta / 2))``, so the Q2 nodes cannot tell)."""
+    bf = m.boundary_facets()
+    rv = np.hypot(*m.p[:2, m.facets[:, bf]])
+    outer = bf[np.all(np.abs(rv - outer_radius) < tol, axis=0)]
+    inner = bf[np.all(np.abs(rv - inner_radius) < tol, axis=0)]
+    return outer, inner
+
+
+class _ZoneArrays(NamedTuple):
+    """The node-indexed arrays that tying the zones renumbers."""
+
+    grads: np.ndarray
+    sdofs: np.ndarray
+    X: np.ndarray
+    area: np.ndarray
+    outer_nodes: np.ndarray
+    inner_nodes: np.ndarray
+
+
+def _tie_zones(m, basis, a: _ZoneArrays, n_fine_elements: int, z_if: float, tol: float):
+    """Tie the fine zone's interface nodes to the coarse face and drop them: the arrays on the
+    solver nodes, and the output fields of :class:`Disc3D` (every mesh node)."""
+    wall = np.zeros(a.X.shape[0])
+    wall[a.outer_nodes], wall[a.inner_nodes] = 1.0, -1.0
+    ties = _interface_ties(m, a.sdofs, a.X, n_fine_elements, z_if, tol, wall)
+    grads, sdofs, keep, area, expand = _eliminate_ties(a.grads, a.sdofs, a.X, a.area, ties)
+    out = {"out_X": a.X, "out_cells": basis.element_dofs.T.copy(), "out_expand": expand}
+    renum = np.full(a.X.shape[0], -1)
+    renum[keep] = np.arange(keep.size)
+    outer = renum[a.outer_nodes]
+    inner = renum[a.inner_nodes]
+    kept = _ZoneArrays(
+        np.ascontiguousarray(grads),
+        sdofs,
+        a.X[keep],
+        area[keep],
+        outer[outer >= 0],
+        inner[inner >= 0],
+    )
+    return kept, out
+
+
 def _outer_area(m, element, outer_f) -> np.ndarray:
     """Consistent reference surface area (mm^2) of every node on the outer facets."""
     import skfem
@@ -203,11 +446,31 @@ def _outer_area(m, element, outer_f) -> np.ndarray:
     return skfem.LinearForm(lambda v, w: v).assemble(fb)
 
 
-def discretise3d(outer_radius: float, thickness: float, z_nodes: np.ndarray, mesh: MeshSpec3D):
-    """Basis, quadrature data, boundary sets and the sparse assembly map of the 1/8 tube."""
+def _zoned_mesh(outer_radius: float, thickness: float, z_nodes, mesh: MeshSpec3D, n_fine):
+    """The tube's mesh and, with a coarsened far zone, the number of fine-zone elements (None
+    for one cross-section along the tube)."""
+    if mesh.far_coarsening > 1 and n_fine is not None and 0 < n_fine < len(z_nodes) - 1:
+        return transition_mesh(outer_radius, thickness, z_nodes, mesh, n_fine)
+    return tube_mesh(outer_radius, thickness, z_nodes, mesh), None
+
+
+def discretise3d(
+    outer_radius: float,
+    thickness: float,
+    z_nodes: np.ndarray,
+    mesh: MeshSpec3D,
+    n_fine: int | None = None,
+):
+    """Basis, quadrature data, boundary sets and the sparse assembly map of the 1/8 tube.
+
+    ``n_fine`` is the number of axial divisions of the fine zone (from ``z = 0``): with
+    ``mesh.far_coarsening > 1`` the cross-section is coarsened beyond it and the interface
+    nodes of the fine zone are tied to the coarse face and eliminated (:class:`MeshSpec3D`).
+    """
     import skfem
 
-    m = tube_mesh(outer_radius, thickness, z_nodes, mesh)
+    z_nodes = np.asarray(z_nodes, dtype=float)
+    m, n_fine_elements = _zoned_mesh(outer_radius, thickness, z_nodes, mesh, n_fine)
     elem = skfem.ElementHex2()
     basis = skfem.Basis(m, elem, intorder=4)
     nloc = elem.doflocs.shape[0]
@@ -218,23 +481,24 @@ def discretise3d(outer_radius: float, thickness: float, z_nodes: np.ndarray, mes
     wpsi = dx[..., None] * psi
     Minv = np.linalg.inv(np.einsum("eqk,eql->ekl", wpsi, psi))
     sdofs = basis.element_dofs.T
-    edofs = (3 * sdofs[:, :, None] + np.arange(3)).reshape(sdofs.shape[0], -1)
     X = basis.doflocs.T.copy()
-    ndof = 3 * X.shape[0]
     tol = 1e-9 * outer_radius
     half = float(z_nodes[-1])
-    rin = outer_radius - thickness
-    bf = m.boundary_facets()
-    # a facet is on a wall when all its vertices are (the chord midpoint of a coarse
-    # circumferential element sags below the wall by R (1 - cos(dtheta / 2)))
-    rv = np.hypot(*m.p[:2, m.facets[:, bf]])
-    outer_f = bf[np.all(np.abs(rv - outer_radius) < tol, axis=0)]
-    inner_f = bf[np.all(np.abs(rv - rin) < tol, axis=0)]
+    outer_f, inner_f = _wall_facets(m, outer_radius, outer_radius - thickness, tol)
     outer_nodes = np.unique(basis.get_dofs(outer_f).all())
     inner_nodes = np.unique(basis.get_dofs(inner_f).all())
+    area_all = _outer_area(m, elem, outer_f)
+    out = {}
+    if n_fine_elements is not None:
+        z_if = float(z_nodes[n_fine])
+        zones = _ZoneArrays(grads, sdofs, X, area_all, outer_nodes, inner_nodes)
+        zones, out = _tie_zones(m, basis, zones, n_fine_elements, z_if, tol)
+        grads, sdofs, X, area_all, outer_nodes, inner_nodes = zones
+    edofs = (3 * sdofs[:, :, None] + np.arange(3)).reshape(sdofs.shape[0], -1)
+    ndof = 3 * X.shape[0]
     on_y0 = np.abs(X[:, 1]) < tol
     inner_nodes = inner_nodes[~on_y0[inner_nodes]]
-    area = _outer_area(m, elem, outer_f)[outer_nodes]
+    area = area_all[outer_nodes]
     rows, cols, scatter, indptr, diag_pos, transpose_pos = _csr_maps(edofs, ndof)
     ne, nq = dx.shape
     # [e, (a i), (b k)] -> [e, b, i, k, a]: the order model3d's element tangent comes out in
@@ -265,4 +529,5 @@ def discretise3d(outer_radius: float, thickness: float, z_nodes: np.ndarray, mes
         grads_t=grads_t,
         scatter_t=scatter_t,
         beta=float(mesh.beta),
+        **out,
     )

@@ -165,8 +165,15 @@ def axial_grid(spec: CaseSpec3D) -> np.ndarray:
 
 
 def build_disc(spec: CaseSpec3D) -> Disc3D:
-    """Discretisation of the case's 1/8 tube (axial mesh refined over the jaw)."""
-    return discretise3d(0.5 * spec.diameter_mm, spec.thickness_mm, axial_grid(spec), spec.mesh)
+    """Discretisation of the case's 1/8 tube (axial mesh refined over the jaw; with
+    ``mesh.far_coarsening > 1`` the cross-section is coarsened beyond the fine zone)."""
+    return discretise3d(
+        0.5 * spec.diameter_mm,
+        spec.thickness_mm,
+        axial_grid(spec),
+        spec.mesh,
+        n_fine=spec.mesh.n_jaw,
+    )
 
 
 # ----------------------------------------------------------------------------------------------

@@ -158,7 +158,9 @@ def plot_sections(sections: Sequence[dict[str, Any]], title: str, path: str | os
     return out
 
 
-def write_vtu(path: str | os.PathLike[str], disc: Disc3D, u: np.ndarray, cells: np.ndarray):
+def write_vtu(
+    path: str | os.PathLike[str], disc: Disc3D, u: np.ndarray, cells: np.ndarray | None = None
+):
     """The deformed 1/8 mesh as VTU (ParaView): 27-node hexahedra, displacement point data.
 
     Parameters
@@ -169,9 +171,11 @@ def write_vtu(path: str | os.PathLike[str], disc: Disc3D, u: np.ndarray, cells: 
         Discretisation (reference node positions, mm).
     u : numpy.ndarray
         Nodal displacements (mm), ``3 n_nodes``.
-    cells : numpy.ndarray
-        ``(n_elements, 27)`` node indices in skfem's ``ElementHex2`` order
-        (``disc.edofs[:, ::3] // 3``).
+    cells : numpy.ndarray, optional
+        ``(n_elements, 27)`` node indices in skfem's ``ElementHex2`` order; default the
+        discretisation's own (:meth:`Disc3D.output_mesh`, which also writes the nodes tied at a
+        zone interface of a coarsened far zone, interpolated).  Only for a mesh without such
+        an interface, where they are ``disc.edofs[:, ::3] // 3``.
 
     Returns
     -------
@@ -181,16 +185,20 @@ def write_vtu(path: str | os.PathLike[str], disc: Disc3D, u: np.ndarray, cells: 
         import meshio
     except ImportError as exc:  # pragma: no cover - depends on the environment
         raise ImportError("writing VTU needs meshio: pip install 'grasprom[vtu]'") from exc
-    disp = u.reshape(-1, 3)
+    X, disp, own = disc.output_mesh(u)
+    if cells is None:
+        cells = own
+    elif disc.out_X is not None:
+        raise ValueError("write_vtu: this mesh has tied nodes (far_coarsening > 1); omit cells")
     ordered = cells[:, vtk_hex27_order()]
-    c = disc.X[ordered[:, [0, 1, 3, 4]]]  # corners 0, 1, 3, 4 of every cell
+    c = X[ordered[:, [0, 1, 3, 4]]]  # corners 0, 1, 3, 4 of every cell
     vol = np.einsum("ei,ei->e", np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]), c[:, 3] - c[:, 0])
     if np.all(vol < 0):  # skfem's mapping of this mesh is left-handed: mirror the VTK cell
         ordered = cells[:, vtk_hex27_order(mirror=True)]
     mesh = meshio.Mesh(
-        points=disc.X + disp,
+        points=X + disp,
         cells=[("hexahedron27", ordered)],
-        point_data={"displacement_mm": disp, "reference_position_mm": disc.X},
+        point_data={"displacement_mm": disp, "reference_position_mm": X},
     )
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -388,7 +388,7 @@ def _existing_status(out_dir: Path, spec: CaseSpec) -> str | None:
     case = df.read_case(files.json)
     if case.meta["input_hash"] != df.input_hash(spec):
         theirs = case.meta.get("spec") if isinstance(case.meta.get("spec"), dict) else {}
-        diffs = df.parameter_differences(theirs, dataclasses.asdict(spec))
+        diffs = df.parameter_differences(theirs, df.spec_record(spec))
         raise SweepConflictError(
             f"--out: {files.json} was computed with different inputs "
             f"({df.format_differences(diffs) or 'input_hash differs'}; file != this run); "

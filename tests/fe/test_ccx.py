@@ -67,6 +67,7 @@ def test_deck_maps_the_materials_and_end_conditions(tmp_path):
         ({"gap_end_mm": 30.0}, "gap_end_mm"),
         ({"gap_end_mm": float("nan")}, "gap_end_mm"),
         ({"spec": replace(SHORT, plane_strain=True)}, "as long as the tube"),
+        ({"spec": replace(SHORT, mesh=MeshSpec3D(far_coarsening=2))}, "far_coarsening"),
     ],
 )
 def test_deck_refuses_what_it_cannot_model(tmp_path, kwargs, match):

@@ -68,3 +68,66 @@ def test_axial_nodes_grade_any_free_length_with_few_elements(n_free, half):
     if n_free > 1:  # geometric growth from the jaw zone's element length
         assert dz[0] == pytest.approx(7.0 / 4, rel=1e-9)
         np.testing.assert_allclose(dz[1:] / dz[:-1], dz[1] / dz[0], rtol=1e-9)
+
+
+def _zoned(n_layers=2, n_circ=6, n_jaw=2, n_free=2, k=2, half=20.0, z_fine=3.0, grading=2.0):
+    mesh = MeshSpec3D(n_layers=n_layers, n_circ=n_circ, n_jaw=n_jaw, n_free=n_free,
+                      grading=grading, far_coarsening=k)  # fmt: skip
+    z = axial_nodes(half, z_fine, n_jaw, n_free)
+    return mesh, z, discretise3d(15.0, 1.4, z, mesh, n_fine=n_jaw)
+
+
+@pytest.mark.parametrize("k", [2, 3])
+def test_coarsened_far_zone_passes_the_patch_test_across_its_interface(k):
+    """A linear displacement field is exact on every element, across the tied interface too
+    (reference: F = I + A everywhere), and the tied nodes get it from the coarse face."""
+    _, _, d = _zoned(n_layers=3 * (k == 3) + 2 * (k == 2), n_circ=6, k=k)
+    A = np.array([[0.01, 0.002, -0.003], [0.004, -0.02, 0.001], [0.0, 0.003, 0.005]])
+    u = (d.X @ A.T).ravel()
+    from grasprom.fe.model3d import kinematics
+
+    F = kinematics(d, u)
+    np.testing.assert_allclose(F, np.broadcast_to(np.eye(3) + A, F.shape), atol=1e-13)
+    X, disp, cells = d.output_mesh(u)
+    np.testing.assert_allclose(disp, X @ A.T, atol=1e-13)
+    assert cells.shape == (d.edofs.shape[0], 27) and X.shape[0] > d.X.shape[0]
+
+
+def test_coarsened_far_zone_counts_nodes_and_faceted_area():
+    """Nodes: the fine zone without its interface plane (tied) plus the coarse zone; the outer
+    area adds up to each zone's faceted surface (chords of its own circumferential elements)."""
+    nl, nc, nj, nf, k = 4, 12, 2, 3, 2
+    mesh, z, d = _zoned(nl, nc, nj, nf, k, half=40.0, z_fine=4.0, grading=4.0)
+    fine = (2 * nl + 1) * (2 * nc + 1) * (2 * nj)
+    coarse = (2 * nl // k + 1) * (2 * nc // k + 1) * (2 * nf + 1)
+    assert d.ndof == 3 * (fine + coarse)
+    th = 0.5 * np.pi * graded_fractions(nc, mesh.grading)
+
+    def chords(t):
+        return (2 * 15.0 * np.sin(0.5 * np.diff(t))).sum()
+
+    zf = z[nj]
+    area = chords(th) * zf + chords(th[::k]) * (z[-1] - zf)
+    assert d.outer_area.sum() == pytest.approx(area, rel=1e-10)
+    # the walls and symmetry planes are still found in both zones
+    Xo = d.X[d.outer_nodes]
+    assert np.hypot(Xo[:, 0], Xo[:, 1]).max() == pytest.approx(15.0)
+    assert d.on_end.sum() == (2 * nl // k + 1) * (2 * nc // k + 1)
+    assert d.on_z0.sum() == (2 * nl + 1) * (2 * nc + 1)
+
+
+def test_far_coarsening_must_divide_the_cross_section():
+    with pytest.raises(ValueError, match="far_coarsening"):
+        MeshSpec3D(n_layers=3, n_circ=12, far_coarsening=2)
+    with pytest.raises(ValueError, match="far_coarsening"):
+        MeshSpec3D(far_coarsening=0)
+
+
+def test_far_coarsening_one_is_the_plain_mesh_bit_for_bit():
+    """k = 1 (and a zone split given) keeps the one cross-section of before."""
+    z = axial_nodes(20.0, 3.0, 2, 2)
+    a = discretise3d(15.0, 1.4, z, MeshSpec3D(n_layers=2, n_circ=6))
+    b = discretise3d(15.0, 1.4, z, MeshSpec3D(n_layers=2, n_circ=6), n_fine=2)
+    assert b.out_X is None
+    for name in ("edofs", "grads", "X", "outer_nodes", "outer_area", "inner_nodes"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))

@@ -76,3 +76,29 @@ def test_vtu_has_valid_hexahedra_and_the_displacements(run, tmp_path):
     for node, corners in ((8, [0, 1]), (24, [0, 1, 2, 3]), (26, list(range(8)))):
         dev = np.linalg.norm(X[:, node] - X[:, corners].mean(axis=1), axis=1)[:, None]
         assert np.all(dev < 0.05 * np.maximum(h, np.linalg.norm(e3, axis=1)[:, None])), node
+
+
+def test_vtu_of_a_coarsened_far_zone_writes_every_node(tmp_path):
+    """With far_coarsening = 2 the fine zone's interface nodes are not solver nodes: the VTU
+    holds them too, each at the coarse face's interpolation (reference: a linear displacement
+    field, exact there), and its cells are the mesh's valid hexahedra."""
+    from dataclasses import replace
+
+    import meshio
+
+    spec = replace(SPEC, mesh=MeshSpec3D(n_layers=2, n_circ=8, n_jaw=2, n_free=2, far_coarsening=2))
+    disc = build_disc(spec)
+    A = np.array([[0.01, 0.0, 0.002], [0.003, -0.02, 0.0], [0.0, 0.001, 0.004]])
+    u = (disc.X @ A.T).ravel()
+    path = write_vtu(tmp_path / "zoned.vtu", disc, u)
+    m = meshio.read(path)
+    (block,) = m.cells
+    X = m.point_data["reference_position_mm"]
+    assert X.shape[0] > disc.X.shape[0] and block.data.shape == (disc.edofs.shape[0], 27)
+    np.testing.assert_allclose(m.point_data["displacement_mm"], X @ A.T, atol=1e-12)
+    Xc = X[block.data]
+    e1, e3, e4 = Xc[:, 1] - Xc[:, 0], Xc[:, 3] - Xc[:, 0], Xc[:, 4] - Xc[:, 0]
+    vol = np.einsum("ei,ei->e", np.cross(e1, e3), e4)
+    assert np.all(vol > 0)
+    with pytest.raises(ValueError, match="omit cells"):
+        write_vtu(tmp_path / "bad.vtu", disc, u, disc.edofs[:, ::3] // 3)

@@ -7,7 +7,6 @@ resists the ovalisation), and clear errors for options that do not fit the model
 
 from __future__ import annotations
 
-import dataclasses
 import json
 from pathlib import Path
 
@@ -15,6 +14,7 @@ import pandas as pd
 import pytest
 
 from grasprom.cli import main
+from grasprom.fe.datafiles import input_hash, sweep_parameters
 from grasprom.fe.grid import build_grid
 from grasprom.fe.grid3d import DEFAULT_MESH_PRESET, MESH_PRESETS, Model3DOptions, to_3d
 from grasprom.fe.mesh3d import MeshSpec3D
@@ -115,7 +115,9 @@ def test_3d_sweep_defaults_to_the_shipped_mesh(capsys):
     manifest = json.loads((ROOT / "fe_data" / "default" / "sweep.json").read_text())
     shipped = manifest["parameters"]
     (case,) = to_3d(build_grid("1.4", "mr"), Model3DOptions(), {})
-    assert dataclasses.asdict(case.mesh) == shipped["mesh"]
+    assert sweep_parameters(case)["mesh"] == shipped["mesh"]
+    hashes = {c["stem"]: c["input_hash"] for c in manifest["cases"]}
+    assert input_hash(case) == hashes["mr_t1.40"]  # the shipped files stay current
     below = shipped["solver"]["predict_contact_below_t"]
     assert case.solver.predict_contact_below_t == below == 2.5
     (other,) = to_3d(build_grid("1.4", "mr"), Model3DOptions(n_free=3), {"n_circ": 24})
@@ -125,6 +127,21 @@ def test_3d_sweep_defaults_to_the_shipped_mesh(capsys):
         main(["sweep", "--help"])
     helptext = " ".join(capsys.readouterr().out.split())
     assert all(name in helptext for name in MESH_PRESETS)
+
+
+def test_3d_sweep_takes_the_far_coarsening(tmp_path):
+    """``--far-coarsening 2`` reaches the mesh and the sidecar (with it, and only then, the
+    sidecar's spec records the field: files written before it stay current)."""
+    out = tmp_path / "zoned"
+    argv = ["sweep", "--thickness", "1.4", "--material", "mr", "--workers", "1", "--quiet"]
+    mesh = ["--n-layers", "2", "--far-coarsening", "2"]
+    assert main([*argv, "--out", str(out), "--model", "3d", *COARSE, *mesh]) == 0
+    meta = json.loads((out / "mr_t1.40.json").read_text())
+    assert meta["spec"]["mesh"]["far_coarsening"] == 2 and meta["status"] == "complete"
+    # 2 x 8 over the jaw zone (its interface plane tied), 1 x 4 over the 9 divisions beyond
+    assert meta["fe_info"]["dofs"] == 3 * (5 * 17 * 8 + 3 * 9 * 19)
+    (plain,) = to_3d(build_grid("1.4", "mr"), Model3DOptions(), {})
+    assert "far_coarsening" not in sweep_parameters(plain)["mesh"]
 
 
 def test_2d_sweep_with_stick_contact_records_it(tmp_path):
@@ -176,6 +193,9 @@ def test_3d_sweep_with_coulomb_contact_records_the_coefficient(tmp_path):
         (["--model", "3d", "--predict-contact-below", "nan"], "--predict-contact-below"),
         (["--model", "3d", "--mesh", "fine"], "--mesh: 'fine' unknown; valid: converged, coarse"),
         (["--mesh", "coarse"], "--mesh: only with --model 3d"),
+        (["--far-coarsening", "2"], "--far-coarsening: only with --model 3d"),
+        (["--model", "3d", "--far-coarsening", "0"], "--far-coarsening: must be an integer >= 1"),
+        (["--model", "3d", "--far-coarsening", "5"], "--far-coarsening: far_coarsening=5 must"),
     ],
 )
 def test_3d_options_that_do_not_fit_are_clear_errors(tmp_path, capsys, extra, needle):
