@@ -29,6 +29,8 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py stall         # 4 x 36: budgeted solves stop when rising
     python benchmarks/bench_fe3d.py factors       # 4 x 36 sweep case: where factorisations go
     python benchmarks/bench_fe3d.py forwardstall  # sweep case mr 0.8: forward stall rule (~1 h)
+    python benchmarks/bench_fe3d.py transition    # sweep case, far zone 2 x 18 vs 4 x 36 (~25 min)
+    python benchmarks/bench_fe3d.py transition --closed-gap 12   # its bending part (~5 min)
 
 Forces in N, gaps in mm.  t = 1.4 mm, Mooney-Rivlin, unless stated.  Timings are wall-clock on
 whatever machine runs this (noisy when shared).
@@ -42,6 +44,7 @@ import time
 from dataclasses import replace
 
 import numpy as np
+import scipy.sparse as sp
 
 from grasprom.fe.mesh3d import MeshSpec3D
 from grasprom.fe.model2d import CaseSpec, MeshSpec, SolverSettings, run_case
@@ -1161,6 +1164,90 @@ def bench_band(meshes=BAND_MESHES, gaps=BAND_GAPS) -> dict:
     return out
 
 
+#: gaps of the zoned mesh's comparison: bending, the crease band, the walls meeting, compaction
+ZONE_GAPS = (25.0, 20.0, 15.0, 10.0, 8.0, 6.0, 5.0, 4.5, 4.0, 3.5, 3.0, 2.9, 2.8, 2.7, 2.6, 2.5)
+#: forces (N) at which the zoned mesh's gap is compared (the surrogate's budget: 20 um)
+ZONE_FORCES = (5.0, 10.0, 20.0, 50.0, 100.0)
+
+
+def _unit_costs(spec: CaseSpec3D, repeat: int = 3) -> tuple[int, float, float]:
+    """DOFs, seconds per PARDISO factorisation and per tangent assembly of the undeformed
+    tube's tangent (this machine, now)."""
+    from grasprom.fe.linsolve import PardisoLDLT, pardiso_available, solve_symmetric
+    from grasprom.fe.model3d import assemble, build_disc
+
+    disc = build_disc(spec)
+    mat = spec.make_material()
+    u = np.zeros(disc.ndof)
+    assemble(disc, mat, u)
+    t0 = time.perf_counter()
+    for _ in range(repeat):
+        K = assemble(disc, mat, u)[1]
+    t_asm = (time.perf_counter() - t0) / repeat
+    K = K + 1e-3 * abs(K.diagonal()).mean() * sp.identity(disc.ndof, format="csr")
+    rhs = np.ones(disc.ndof)
+    solve = PardisoLDLT() if pardiso_available() else (lambda A, b: solve_symmetric(A, b))
+    solve(K, rhs)  # the analysis, once
+    t0 = time.perf_counter()
+    for _ in range(repeat):
+        solve(K, rhs)
+    return disc.ndof, (time.perf_counter() - t0) / repeat, t_asm
+
+
+def bench_transition(closed_gap: float = 1.5) -> dict:
+    """The sweep's case (mr, t = 1.4, 4 x 36 graded 8:1, 240 mm tube, stick) on one cross-section
+    along the tube (the shipped mesh) and with the cross-section halved beyond the jaw zone
+    (``MeshSpec3D.far_coarsening`` = 2: 2 x 18 beyond z = 7 mm): DOFs, the cost of a
+    factorisation and of an assembly, wall time, counts; the force at fixed gaps (interpolated
+    on each run's own path, no landing gaps: the sweep's path) and the gap at equal force
+    (~25 min, the two runs one after the other)."""
+    base = replace(_sweep_case("mr", T), closed_gap_mm=closed_gap)
+    specs = {"one cross-section": base}
+    specs["far_coarsening 2"] = replace(base, mesh=replace(base.mesh, far_coarsening=2))
+    out = {}
+    for label, spec in specs.items():
+        ndof, t_fac, t_asm = _unit_costs(spec)
+        t0 = time.perf_counter()
+        r = _run(spec, label)
+        wall = time.perf_counter() - t0
+        i = r.info
+        tab = r.table.sort_values("gap_mm")
+        g, f = tab["gap_mm"].to_numpy(), tab["force_N"].to_numpy()
+        mono = np.maximum.accumulate(f[::-1])[::-1]  # force falls with the gap (a snap aside)
+        out[label] = {
+            "dofs": ndof,
+            "factorisation_s": t_fac,
+            "assembly_s": t_asm,
+            "wall_s": wall,
+            "steps": i["steps"],
+            "newton": i["newton_iterations"],
+            "factorisations": i["factorizations"],
+            "force_N": {gg: float(np.interp(gg, g, f, np.nan, np.nan)) for gg in ZONE_GAPS},
+            "gap_at_force_mm": {
+                ff: float(np.interp(ff, mono[::-1], g[::-1])) if mono.max() >= ff else None
+                for ff in ZONE_FORCES
+            },
+        }
+    a, b = out["one cross-section"], out["far_coarsening 2"]
+    print(f"  {'':<22}{'one cross-section':>20}{'far_coarsening 2':>20}{'ratio':>9}")
+    for key, fmt in (("dofs", "{:20d}"), ("factorisation_s", "{:20.3f}"),
+                     ("assembly_s", "{:20.3f}"), ("wall_s", "{:20.1f}"),
+                     ("steps", "{:20d}"), ("newton", "{:20d}"),
+                     ("factorisations", "{:20d}")):  # fmt: skip
+        print(f"  {key:<22}" + fmt.format(a[key]) + fmt.format(b[key]) + f"{b[key] / a[key]:9.2f}")
+    print(f"  {'s per factorisation':<22}{a['wall_s'] / a['factorisations']:20.3f}"
+          f"{b['wall_s'] / b['factorisations']:20.3f}")  # fmt: skip
+    _header(ZONE_GAPS)
+    _print_row("one cross-section (N)", a["force_N"])
+    rel = {gg: 100.0 * (b["force_N"][gg] / a["force_N"][gg] - 1.0) for gg in ZONE_GAPS}
+    _print_row("far_coarsening 2 (%)", rel, "{:9.2f}")
+    for ff in ZONE_FORCES:
+        ga, gb = a["gap_at_force_mm"][ff], b["gap_at_force_mm"][ff]
+        if ga is not None and gb is not None:
+            print(f"  gap at {ff:5.0f} N: {ga:.4f} / {gb:.4f} mm, {1000 * (gb - ga):+.1f} um")
+    return out
+
+
 SECTIONS = {
     "shell": bench_shell,
     "default": bench_default,
@@ -1186,6 +1273,7 @@ SECTIONS = {
     "stall": bench_stall,
     "forwardstall": bench_forward_stall,
     "factors": bench_factors,
+    "transition": bench_transition,
 }
 
 
@@ -1210,8 +1298,8 @@ def main(argv: list[str]) -> None:
         "--closed-gap",
         type=float,
         default=None,
-        help="'activeset' and 'reuse' sections: end of the stroke in mm (default 1.5, to the "
-        "force cap, for 'activeset'; 12, the bending part, for 'reuse')",
+        help="'activeset', 'reuse', 'factors' and 'transition' sections: end of the stroke in "
+        "mm (default 1.5, to the force cap; 12, the bending part, for 'reuse')",
     )
     ap.add_argument("--json", help="write the figures as JSON here")
     args = ap.parse_args(argv)
@@ -1231,6 +1319,8 @@ def main(argv: list[str]) -> None:
             results[name] = bench_reuse(args.closed_gap or 12.0)
         elif name == "factors":
             results[name] = bench_factors(args.closed_gap or 1.5)
+        elif name == "transition":
+            results[name] = bench_transition(args.closed_gap or 1.5)
         elif name == "forwardstall":
             results[name] = bench_forward_stall(float(args.thickness.split(",")[0]))
         else:
