@@ -28,6 +28,7 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py band          # 4 x 48 vs 4 x 36, 240 mm: crease band (~35 min)
     python benchmarks/bench_fe3d.py stall         # 4 x 36: budgeted solves stop when rising
     python benchmarks/bench_fe3d.py factors       # 4 x 36 sweep case: where factorisations go
+    python benchmarks/bench_fe3d.py factors --far-coarsening 2   # the same, 2 x 18 beyond the jaw
     python benchmarks/bench_fe3d.py forwardstall  # sweep case mr 0.8: forward stall rule (~1 h)
     python benchmarks/bench_fe3d.py transition    # sweep case, far zone 2 x 18 vs 4 x 36 (~25 min)
     python benchmarks/bench_fe3d.py transition --closed-gap 12   # its bending part (~5 min)
@@ -986,16 +987,18 @@ class _AttributedSolver:
             self.log.append([phase, kind, time.perf_counter() - t0, False])
 
 
-def bench_factors(closed_gap: float = 1.5) -> dict:
+def bench_factors(closed_gap: float = 1.5, far_coarsening: int = 1) -> dict:
     """Where the factorisations of the converged sweep's case go (4 x 36 graded 8:1, six axial
     divisions beyond the jaw, 240 mm tube, mr, t = 1.4, stick, contact predicted below 2.5 t,
     no landing gaps: the case ``grasprom sweep`` runs; ~15 min): count and seconds by phase
     (forward steps, crease placement, relaxation) and kind (predictor, Newton direction,
     Levenberg shift), those spent in solves that failed, and the assembly's share; then the
-    wall time by region of the stroke (:func:`_regions`)."""
+    wall time by region of the stroke (:func:`_regions`).  ``far_coarsening``: the mesh's
+    (``--far-coarsening``; 1, the shipped mesh)."""
     from grasprom.fe import model3d
 
     spec = replace(_sweep_case("mr", T), closed_gap_mm=closed_gap)
+    spec = replace(spec, mesh=replace(spec.mesh, far_coarsening=far_coarsening))
     solvers: list[_AttributedSolver] = []
     make, solve_step, assemble = model3d.make_solver, model3d._solve_step, model3d.assemble
     crease_onset = model3d._crease_onset
@@ -1301,6 +1304,13 @@ def main(argv: list[str]) -> None:
         help="'activeset', 'reuse', 'factors' and 'transition' sections: end of the stroke in "
         "mm (default 1.5, to the force cap; 12, the bending part, for 'reuse')",
     )
+    ap.add_argument(
+        "--far-coarsening",
+        type=int,
+        default=1,
+        help="'factors' section: MeshSpec3D.far_coarsening of the case (default 1, the shipped "
+        "mesh; 2 halves the cross-section beyond the jaw zone)",
+    )
     ap.add_argument("--json", help="write the figures as JSON here")
     args = ap.parse_args(argv)
     unknown = [n for n in args.sections if n not in SECTIONS]
@@ -1318,7 +1328,7 @@ def main(argv: list[str]) -> None:
         elif name == "reuse":
             results[name] = bench_reuse(args.closed_gap or 12.0)
         elif name == "factors":
-            results[name] = bench_factors(args.closed_gap or 1.5)
+            results[name] = bench_factors(args.closed_gap or 1.5, args.far_coarsening)
         elif name == "transition":
             results[name] = bench_transition(args.closed_gap or 1.5)
         elif name == "forwardstall":
