@@ -286,8 +286,9 @@ def _add_mesh3d_options(s: argparse.ArgumentParser) -> None:
         default=None,
         metavar="K",
         help="3d: beyond the fine zone over the jaw, 1/K of the layers and circumferential "
-        "divisions (K divides both; the zones are tied at their interface plane): about 2.5x "
-        "fewer unknowns at K = 2 (default of --mesh: 1, one cross-section along the tube)",
+        "divisions (K divides both; the zones are tied at their interface plane): with "
+        "--mesh converged and K = 2, 22,983 unknowns instead of 41,391 and about half the wall "
+        "time (default 1: one cross-section along the tube, the shipped data's)",
     )
     s.add_argument(
         "--predict-contact-below",
