@@ -67,7 +67,11 @@ class MeshSpec3D:
         coarse face's quadratic interpolation; the tied nodes are eliminated): a linear
         displacement field passes the interface exactly.  The folds and the contact are in the
         fine zone; beyond it the tube only ovalises, which the coarse cross-section resolves
-        (``benchmarks/bench_fe3d.py transition``).
+        (``benchmarks/bench_fe3d.py transition``).  Needs a far zone (a tube longer than the
+        jaw plus twice ``fine_margin_mm`` > 0, ``n_free`` >= 1).  Known limitation: with two
+        or more coarse layers, a fine node on the arc where two coarse layers meet lies off
+        their common chord, and each side's face interpolates it (a linear field alike, a
+        field with a kink at that chord not), so the tie is not exactly conforming there.
     """
 
     n_layers: int = 2
@@ -99,6 +103,10 @@ class MeshSpec3D:
         k = self.far_coarsening
         if isinstance(k, bool) or not isinstance(k, int | np.integer) or k < 1:
             raise ValueError(f"invalid far_coarsening={k!r}: an integer >= 1")
+        if k > 1 and not self.fine_margin_mm > 0:
+            raise ValueError(
+                f"far_coarsening={k} needs fine_margin_mm > 0 (the tied plane off the jaw)"
+            )
         if self.n_layers % k or self.n_circ % k:
             raise ValueError(
                 f"far_coarsening={k} must divide n_layers={self.n_layers} and "
@@ -341,7 +349,9 @@ def _interface_ties(
     Wa = np.empty((fine.size, 9, 9))
     for i, e in enumerate(fine):
         loc = np.flatnonzero(on[sdofs[e]])
-        centre = _polar_key(X[sdofs[e, loc], :2].mean(axis=0, keepdims=True), scale)[:, 0]
+        verts = m.p[:, m.t[:, e]]
+        verts = verts[:2, np.abs(verts[2] - z_if) < tol].T  # the face's 4 corners, on the arcs
+        centre = _polar_key(verts, scale).mean(axis=1)
         hit = [j for j, (lo, hi, _) in enumerate(boxes) if np.all((lo <= centre) & (centre <= hi))]
         if len(hit) != 1:
             raise RuntimeError(f"zone interface: fine face {e} lies in {len(hit)} coarse faces")
@@ -449,9 +459,15 @@ def _outer_area(m, element, outer_f) -> np.ndarray:
 def _zoned_mesh(outer_radius: float, thickness: float, z_nodes, mesh: MeshSpec3D, n_fine):
     """The tube's mesh and, with a coarsened far zone, the number of fine-zone elements (None
     for one cross-section along the tube)."""
-    if mesh.far_coarsening > 1 and n_fine is not None and 0 < n_fine < len(z_nodes) - 1:
-        return transition_mesh(outer_radius, thickness, z_nodes, mesh, n_fine)
-    return tube_mesh(outer_radius, thickness, z_nodes, mesh), None
+    if mesh.far_coarsening == 1:
+        return tube_mesh(outer_radius, thickness, z_nodes, mesh), None
+    if n_fine is None or not 0 < n_fine < len(z_nodes) - 1:
+        raise ValueError(
+            f"far_coarsening={mesh.far_coarsening} needs a far zone beyond the fine one: a tube "
+            "longer than the jaw plus twice fine_margin_mm, n_free >= 1 and the fine zone's "
+            "divisions (n_fine)"
+        )
+    return transition_mesh(outer_radius, thickness, z_nodes, mesh, n_fine)
 
 
 def discretise3d(

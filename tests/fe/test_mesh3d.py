@@ -81,7 +81,7 @@ def _zoned(n_layers=2, n_circ=6, n_jaw=2, n_free=2, k=2, half=20.0, z_fine=3.0, 
 def test_coarsened_far_zone_passes_the_patch_test_across_its_interface(k):
     """A linear displacement field is exact on every element, across the tied interface too
     (reference: F = I + A everywhere), and the tied nodes get it from the coarse face."""
-    _, _, d = _zoned(n_layers=3 * (k == 3) + 2 * (k == 2), n_circ=6, k=k)
+    _, _, d = _zoned(n_layers=2 * k, n_circ=6, k=k)  # two coarse layers
     A = np.array([[0.01, 0.002, -0.003], [0.004, -0.02, 0.001], [0.0, 0.003, 0.005]])
     u = (d.X @ A.T).ravel()
     from grasprom.fe.model3d import kinematics
@@ -116,11 +116,18 @@ def test_coarsened_far_zone_counts_nodes_and_faceted_area():
     assert d.on_z0.sum() == (2 * nl + 1) * (2 * nc + 1)
 
 
-def test_far_coarsening_must_divide_the_cross_section():
+def test_far_coarsening_must_divide_the_cross_section_and_have_a_far_zone():
     with pytest.raises(ValueError, match="far_coarsening"):
         MeshSpec3D(n_layers=3, n_circ=12, far_coarsening=2)
     with pytest.raises(ValueError, match="far_coarsening"):
         MeshSpec3D(far_coarsening=0)
+    with pytest.raises(ValueError, match="fine_margin_mm > 0"):
+        MeshSpec3D(far_coarsening=2, fine_margin_mm=0.0)
+    mesh = MeshSpec3D(n_layers=2, n_circ=6, far_coarsening=2)
+    for z, n_fine in ((axial_nodes(5.0, 7.0, 2, 2), 2), (axial_nodes(20.0, 3.0, 2, 0), 2),
+                      (axial_nodes(20.0, 3.0, 2, 2), None)):  # fmt: skip
+        with pytest.raises(ValueError, match="needs a far zone"):
+            discretise3d(15.0, 1.4, z, mesh, n_fine=n_fine)
 
 
 def test_far_coarsening_one_is_the_plain_mesh_bit_for_bit():

@@ -302,11 +302,12 @@ def test_finite_jaw_is_stiffer_than_the_2d_strip(short_stroke):
 
 def test_coarsened_far_zone_follows_the_one_cross_section_tube():
     """Second mesh of the same tube: 2 x 16 over the jaw and its margin and 1 x 8 beyond (tied
-    at z = 7 mm) against 2 x 16 along the whole tube, stick, to gap 27 mm, on 26 % fewer
-    unknowns.  Measured: +0.9 % at each gap (the 1 x 8 mesh everywhere: +0.5 %; on the
-    default 4 x 36 tube with 2 x 18 beyond, +0.5 % at gap 25 mm, 0.1-0.2 % from 20 to 6 mm,
-    benchmarks/bench_fe3d.py transition): the coarse zone's chords, not the tie, which passes
-    a linear field exactly (tests/fe/test_mesh3d.py) and Lame's state (above)."""
+    at z = 7 mm) against 2 x 16 along the whole tube, stick, to gap 27 mm, on 37 % fewer
+    unknowns.  Measured: +0.9 % at each gap, while the 1 x 8 mesh everywhere is +0.5 %: on
+    this short tube (the far zone is where it ovalises most) the tie stiffens it too, though
+    it passes a linear field exactly (tests/fe/test_mesh3d.py) and Lame's state (above).  On
+    the default 240 mm tube, 4 x 36 with 2 x 18 beyond: +0.5 % at gap 25 mm, 0.1-0.2 % from
+    20 to 6 mm (benchmarks/bench_fe3d.py transition)."""
     gaps = (29.0, 28.0, 27.0)
     fine = MeshSpec3D(n_layers=2, n_circ=16, n_jaw=3, n_free=3)
     spec = CaseSpec3D("mr", 1.4, tube_length_mm=30.0, closed_gap_mm=27.0)
@@ -314,10 +315,10 @@ def test_coarsened_far_zone_follows_the_one_cross_section_tube():
     rf = run_case_3d(replace(spec, mesh=fine), solver="superlu")
     rz = run_case_3d(replace(spec, mesh=replace(fine, far_coarsening=2)), solver="superlu")
     assert rz.status == rf.status == "complete"
-    assert rz.info["dofs"] < 0.75 * rf.info["dofs"]
+    assert rz.info["dofs"] < 0.65 * rf.info["dofs"]
     for g in gaps:
         ff, fz = _at(rf.table, g), _at(rz.table, g)
-        assert 1.0 <= fz / ff < 1.015
+        assert 1.0 <= fz / ff < 1.012
 
 
 @pytest.mark.slow
