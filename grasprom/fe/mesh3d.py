@@ -310,6 +310,13 @@ def _polar_key(xy: np.ndarray, scale: float) -> np.ndarray:
     return np.round(np.stack([radius, np.arctan2(xy[:, 1], xy[:, 0])]), 9)
 
 
+def _interface_corners(m, elements: np.ndarray, z_if: float, tol: float) -> np.ndarray:
+    """``(n, 4, 2)``: x, y (mm) of each element's 4 vertices on the plane ``z = z_if``."""
+    p = m.p[:, m.t[:, elements]]  # (3, 8, n)
+    on = np.abs(p[2] - z_if) < tol
+    return p[:2].transpose(2, 1, 0)[on.T].reshape(len(elements), 4, 2)
+
+
 def _interface_ties(
     m, sdofs: np.ndarray, X: np.ndarray, n_fine: int, z_if: float, tol: float, wall: np.ndarray
 ):
@@ -335,29 +342,27 @@ def _interface_ties(
     fine = np.flatnonzero(face[:n_fine])
     coarse = n_fine + np.flatnonzero(face[n_fine:])
     scale = np.abs(X[:, :2]).max()
-    # each coarse face by the (radius, angle) box of its 4 vertices
-    vc = m.p[:2, m.t[:, coarse]].transpose(2, 1, 0)  # (nc, 8, 2)
-    vz = m.p[2, m.t[:, coarse]].T  # (nc, 8)
-    boxes = []
-    for verts, zs in zip(vc, vz):
-        v = verts[np.abs(zs - z_if) < tol]
-        key = _polar_key(v, scale)
-        boxes.append((key.min(axis=1), key.max(axis=1), v[np.lexsort((key[1], key[0]))]))
+    # each coarse face by the (radius, angle) box of its 4 corners, each fine face by their mean
+    cc = _interface_corners(m, coarse, z_if, tol)
+    key = _polar_key(cc.reshape(-1, 2), scale).reshape(2, coarse.size, 4)
+    lo, hi = key.min(axis=2).T, key.max(axis=2).T
+    order = np.lexsort((key[1], key[0]), axis=-1)
+    corners_all = np.take_along_axis(cc, order[..., None], axis=1).reshape(-1, 2, 2, 2)
+    fc = _interface_corners(m, fine, z_if, tol)
+    centre = _polar_key(fc.reshape(-1, 2), scale).reshape(2, fine.size, 4).mean(axis=2).T
+    hits = np.all((lo <= centre[:, None]) & (centre[:, None] <= hi), axis=2)
+    bad = np.flatnonzero(hits.sum(axis=1) != 1)
+    if bad.size:
+        n = int(hits[bad[0]].sum())
+        raise RuntimeError(f"zone interface: fine face {fine[bad[0]]} lies in {n} coarse faces")
     slots = np.empty((fine.size, 9), dtype=np.int64)
     masters = np.empty((fine.size, 9), dtype=np.int64)
     W = np.empty((fine.size, 9, 9))
     Wa = np.empty((fine.size, 9, 9))
-    for i, e in enumerate(fine):
+    for i, (e, j) in enumerate(zip(fine, hits.argmax(axis=1))):
         loc = np.flatnonzero(on[sdofs[e]])
-        verts = m.p[:, m.t[:, e]]
-        verts = verts[:2, np.abs(verts[2] - z_if) < tol].T  # the face's 4 corners, on the arcs
-        centre = _polar_key(verts, scale).mean(axis=1)
-        hit = [j for j, (lo, hi, _) in enumerate(boxes) if np.all((lo <= centre) & (centre <= hi))]
-        if len(hit) != 1:
-            raise RuntimeError(f"zone interface: fine face {e} lies in {len(hit)} coarse faces")
-        j = hit[0]
         mloc = np.flatnonzero(on[sdofs[coarse[j]]])
-        corners = boxes[j][2].reshape(2, 2, 2)
+        corners = corners_all[j]
         xm = np.round(_bilinear_inverse(corners, X[sdofs[coarse[j], mloc], :2])).astype(int) + 1
         xs = _bilinear_inverse(corners, X[sdofs[e, loc], :2])
         W[i] = _lagrange3(xs[:, 0])[:, xm[:, 0]] * _lagrange3(xs[:, 1])[:, xm[:, 1]]
@@ -374,8 +379,9 @@ def _eliminate_ties(grads, sdofs, X, outer_area_all, ties):
     elements recombined (``dN_m = sum_s W[s, m] dN_s``), the tied nodes' outer area passed on
     to the wall's masters (``Wa``), the tied nodes removed and the rest renumbered.
 
-    Returns ``(grads, node ids per element, kept node ids, area of all nodes, expand)`` where
-    ``expand`` maps the kept nodes' values to all nodes (the tied ones interpolated).
+    Returns ``(grads, node ids per element, renumbering, area of all nodes, expand)``: the node
+    ids are of all nodes, ``renumbering`` maps them to the kept ones (-1 for a tied node) and
+    ``expand`` the kept nodes' values to all nodes (the tied ones interpolated).
     """
     import scipy.sparse as sp
 
@@ -400,7 +406,7 @@ def _eliminate_ties(grads, sdofs, X, outer_area_all, ties):
     ci = np.concatenate([renum[keep], renum[rows_m.ravel()]])
     vals = np.concatenate([np.ones(keep.size), rows_w.ravel()])
     expand = sp.csr_matrix((vals, (ri, ci)), shape=(n_all, keep.size))
-    return grads, renum[sd], keep, area, expand
+    return grads, sd, renum, area, expand
 
 
 def _wall_facets(m, outer_radius: float, inner_radius: float, tol: float):
@@ -431,15 +437,14 @@ def _tie_zones(m, basis, a: _ZoneArrays, n_fine_elements: int, z_if: float, tol:
     wall = np.zeros(a.X.shape[0])
     wall[a.outer_nodes], wall[a.inner_nodes] = 1.0, -1.0
     ties = _interface_ties(m, a.sdofs, a.X, n_fine_elements, z_if, tol, wall)
-    grads, sdofs, keep, area, expand = _eliminate_ties(a.grads, a.sdofs, a.X, a.area, ties)
+    grads, sdofs, renum, area, expand = _eliminate_ties(a.grads, a.sdofs, a.X, a.area, ties)
     out = {"out_X": a.X, "out_cells": basis.element_dofs.T.copy(), "out_expand": expand}
-    renum = np.full(a.X.shape[0], -1)
-    renum[keep] = np.arange(keep.size)
+    keep = renum >= 0
     outer = renum[a.outer_nodes]
     inner = renum[a.inner_nodes]
     kept = _ZoneArrays(
         np.ascontiguousarray(grads),
-        sdofs,
+        renum[sdofs],
         a.X[keep],
         area[keep],
         outer[outer >= 0],
