@@ -1174,9 +1174,10 @@ ZONE_FORCES = (5.0, 10.0, 20.0, 50.0, 100.0)
 
 
 def _unit_costs(spec: CaseSpec3D, repeat: int = 3) -> tuple[int, float, float]:
-    """DOFs, seconds per PARDISO factorisation and per tangent assembly of the undeformed
-    tube's tangent (this machine, now)."""
-    from grasprom.fe.linsolve import PardisoLDLT, pardiso_available, solve_symmetric
+    """DOFs, seconds per factorisation (the ``"auto"`` solver: PARDISO if installed) and per
+    tangent assembly of the undeformed tube's tangent (this machine, now; the mean of
+    ``repeat`` after a warm-up)."""
+    from grasprom.fe.linsolve import make_solver
     from grasprom.fe.model3d import assemble, build_disc
 
     disc = build_disc(spec)
@@ -1189,7 +1190,7 @@ def _unit_costs(spec: CaseSpec3D, repeat: int = 3) -> tuple[int, float, float]:
     t_asm = (time.perf_counter() - t0) / repeat
     K = K + 1e-3 * abs(K.diagonal()).mean() * sp.identity(disc.ndof, format="csr")
     rhs = np.ones(disc.ndof)
-    solve = PardisoLDLT() if pardiso_available() else (lambda A, b: solve_symmetric(A, b))
+    solve = make_solver("auto")
     solve(K, rhs)  # the analysis, once
     t0 = time.perf_counter()
     for _ in range(repeat):
