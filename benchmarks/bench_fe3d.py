@@ -1044,7 +1044,10 @@ def bench_factors(closed_gap: float = 1.5, far_coarsening: int = 1) -> dict:
     model3d._crease_onset = placed
     try:
         t0 = time.perf_counter()
-        r = _run(spec, "the sweep's 4 x 36 case, factorisations attributed", progress=progress)
+        label = "the sweep's 4 x 36 case" + (
+            f", far_coarsening {far_coarsening}" if far_coarsening != 1 else ""
+        )
+        r = _run(spec, f"{label}, factorisations attributed", progress=progress)
         wall = time.perf_counter() - t0
     finally:
         model3d.make_solver, model3d._solve_step, model3d.assemble = make, solve_step, assemble
@@ -1169,8 +1172,6 @@ def bench_band(meshes=BAND_MESHES, gaps=BAND_GAPS) -> dict:
 
 #: gaps of the zoned mesh's comparison: bending, the crease band, the walls meeting, compaction
 ZONE_GAPS = (25.0, 20.0, 15.0, 10.0, 8.0, 6.0, 5.0, 4.5, 4.0, 3.5, 3.0, 2.9, 2.8, 2.7, 2.6, 2.5)
-#: forces (N) at which the zoned mesh's gap is compared (the surrogate's budget: 20 um)
-ZONE_FORCES = (5.0, 10.0, 20.0, 50.0, 100.0)
 
 
 def _unit_costs(spec: CaseSpec3D, repeat: int = 3) -> tuple[int, float, float]:
@@ -1217,7 +1218,7 @@ def bench_transition(closed_gap: float = 1.5) -> dict:
         i = r.info
         tab = r.table.sort_values("gap_mm")
         g, f = tab["gap_mm"].to_numpy(), tab["force_N"].to_numpy()
-        mono = np.maximum.accumulate(f[::-1])[::-1]  # force falls with the gap (a snap aside)
+        rise = _gap_at_force(r.table) if f.max() >= RISE_FORCES[0] else {}
         out[label] = {
             "dofs": ndof,
             "factorisation_s": t_fac,
@@ -1227,10 +1228,7 @@ def bench_transition(closed_gap: float = 1.5) -> dict:
             "newton": i["newton_iterations"],
             "factorisations": i["factorizations"],
             "force_N": {gg: float(np.interp(gg, g, f, np.nan, np.nan)) for gg in ZONE_GAPS},
-            "gap_at_force_mm": {
-                ff: float(np.interp(ff, mono[::-1], g[::-1])) if mono.max() >= ff else None
-                for ff in ZONE_FORCES
-            },
+            "gap_at_force_mm": {ff: rise[ff] if f.max() >= ff else None for ff in RISE_FORCES},
         }
     a, b = out["one cross-section"], out["far_coarsening 2"]
     print(f"  {'':<22}{'one cross-section':>20}{'far_coarsening 2':>20}{'ratio':>9}")
@@ -1245,7 +1243,7 @@ def bench_transition(closed_gap: float = 1.5) -> dict:
     _print_row("one cross-section (N)", a["force_N"])
     rel = {gg: 100.0 * (b["force_N"][gg] / a["force_N"][gg] - 1.0) for gg in ZONE_GAPS}
     _print_row("far_coarsening 2 (%)", rel, "{:9.2f}")
-    for ff in ZONE_FORCES:
+    for ff in RISE_FORCES:
         ga, gb = a["gap_at_force_mm"][ff], b["gap_at_force_mm"][ff]
         if ga is not None and gb is not None:
             print(f"  gap at {ff:5.0f} N: {ga:.4f} / {gb:.4f} mm, {1000 * (gb - ga):+.1f} um")
