@@ -635,6 +635,84 @@ def test_a_budgeted_solve_stops_when_its_residual_keeps_rising(monkeypatch):
     assert len(seen) > st.settings.max_newton
 
 
+class _AscentFirst:
+    """A :func:`grasprom.fe.linsolve.make_solver` solver whose first Newton direction (the
+    first solve once ``armed``) is the ascent direction, as an indefinite tangent past a limit
+    point can give, so that :func:`grasprom.fe.linsolve.descent_direction` retries it with a
+    Levenberg shift."""
+
+    def __init__(self, inner):
+        self.inner, self.calls, self.armed, self.flipped = inner, 0, False, False
+
+    @property
+    def factorizations(self) -> int:
+        return self.inner.factorizations
+
+    def __call__(self, K, rhs):
+        self.calls += 1
+        x = self.inner(K, rhs)
+        if self.armed and not self.flipped:
+            self.flipped = True
+            return -x
+        return x
+
+    def resolve(self, rhs):
+        return self.inner.resolve(rhs)
+
+
+def _armed_descent(model3d):
+    """``descent_direction`` that arms an :class:`_AscentFirst` solver (the predictor's solve
+    before it is left alone)."""
+    plain = model3d.descent_direction
+
+    def armed(solve, K, r):
+        solve.armed = True
+        return plain(solve, K, r)
+
+    return armed
+
+
+def test_an_unshifted_solve_fails_at_the_first_shifted_direction(monkeypatch):
+    """``unshifted=True`` (the plain attempts of the snap solver, ``RELAX_PLAIN_UNSHIFTED``)
+    gives up as soon as a Newton direction needs a Levenberg shift; without it the shifted
+    direction is taken and the solve reaches the same equilibrium (jaw force to 1e-6: Newton
+    stops at 1e-8 of the force scale); where no shift is needed it returns the state of the
+    plain solve to the bit.  ``_relax`` passes it to its plain attempts only."""
+    from dataclasses import replace
+
+    model3d, st, u0, K0, c0, h = _first_touch_step()
+    ref = model3d._solve_step(st, u0, K0, c0, h)
+    same = model3d._solve_step(st, u0, K0, c0, h, unshifted=True)
+    assert np.array_equal(same[0], ref[0]) and same[4] == ref[4]
+
+    monkeypatch.setattr(model3d, "descent_direction", _armed_descent(model3d))
+    flipped = replace(st, solver=_AscentFirst(model3d.make_solver("auto")))
+    with pytest.raises(model3d._NewtonFailure, match="Levenberg shift"):
+        model3d._solve_step(flipped, u0, K0, c0, h, unshifted=True)
+    flipped = replace(st, solver=_AscentFirst(model3d.make_solver("auto")))
+    u, f, _, c, _ = model3d._solve_step(flipped, u0, K0, c0, h)
+    assert flipped.solver.flipped
+
+    def force(u, f, c):
+        return model3d.contact_measures(st, c, u, f, h)["force_q"]
+
+    assert force(u, f, c) == pytest.approx(force(ref[0], ref[1], ref[3]), rel=1e-6)
+
+    monkeypatch.undo()
+    calls = []
+    solve_step = model3d._solve_step
+
+    def recorded(*args, **kw):
+        calls.append((kw.get("budget"), kw.get("unshifted", False), args[5:]))
+        return solve_step(*args, **kw)
+
+    monkeypatch.setattr(model3d, "_solve_step", recorded)
+    model3d._relax(st, u0, K0, c0, h)
+    plain = [c[:2] for c in calls if not c[2]]
+    assert plain and set(plain) == {(model3d.RELAX_PLAIN_BUDGET, True)}
+    assert all(c[2] and not c[1] for c in calls if c[0] is None)  # proximal: shifts allowed
+
+
 def test_a_cut_newton_step_adds_the_nodes_its_full_step_would_push_through():
     """When a Newton step is cut at the first touch, the nodes the uncut step (the probe) would
     push into the floor or the jaw join the active set at once: exactly those, the jaw's at the

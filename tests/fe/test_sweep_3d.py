@@ -48,6 +48,7 @@ def test_3d_sweep_writes_the_contract_and_the_model_keys(tmp_path, capsys):
     rules = meta["fe_info"]["solver_rules"]
     assert rules["forward_stall_rises"] == 15 and rules["stall_rises"] == 6
     assert rules["crease_back_halvings"] == 3 and rules["active_set_rtol"] == 0.01
+    assert rules["relax_plain_unshifted"] is True
     # the deformed shape at the last gap, for the report's picture
     (sec,) = meta["fe_info"]["sections"]
     assert sec["gap_mm"] == pytest.approx(table["gap_mm"].iloc[-1])
