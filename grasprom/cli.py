@@ -306,8 +306,9 @@ def _add_mesh3d_options(s: argparse.ArgumentParser) -> None:
         metavar="NAME",
         help="3d: named mesh, converged (default; the shipped fe_data/default's: 4 x 36 graded "
         "8:1, 6 axial divisions beyond the jaw, contact predicted below 2.5 t; 10-30 min a "
-        "case) or coarse (2 x 12 graded 2:1, 9 beyond: fe_data/3d_2x12, converged in bending "
-        "only; 2-5 min a case); the mesh options above override it one by one "
+        "case), coarse (2 x 12 graded 2:1, 9 beyond: fe_data/3d_2x12, converged in bending "
+        "only; 2-5 min a case) or zoned (converged over the jaw, 2 x 18 beyond its 2 mm margin: "
+        "--far-coarsening 2; 4-10 min a case); the mesh options above override it one by one "
         "(grasprom.fe.grid3d.MESH_PRESETS)",
     )
 

@@ -8,6 +8,7 @@ resists the ovalisation), and clear errors for options that do not fit the model
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import pandas as pd
@@ -123,7 +124,8 @@ def test_3d_sweep_defaults_to_the_shipped_mesh(capsys):
     assert case.solver.predict_contact_below_t == below == 2.5
     (other,) = to_3d(build_grid("1.4", "mr"), Model3DOptions(n_free=3), {"n_circ": 24})
     assert (other.mesh.n_circ, other.mesh.n_free, other.mesh.grading) == (24, 3, 8.0)
-    assert DEFAULT_MESH_PRESET == "converged" and set(MESH_PRESETS) == {"converged", "coarse"}
+    assert DEFAULT_MESH_PRESET == "converged"
+    assert set(MESH_PRESETS) == {"converged", "coarse", "zoned"}
     with pytest.raises(SystemExit):
         main(["sweep", "--help"])
     helptext = " ".join(capsys.readouterr().out.split())
@@ -143,6 +145,19 @@ def test_3d_sweep_takes_the_far_coarsening(tmp_path):
     assert meta["fe_info"]["dofs"] == 3 * (5 * 17 * 8 + 3 * 9 * 19)
     (plain,) = to_3d(build_grid("1.4", "mr"), Model3DOptions(), {})
     assert "far_coarsening" not in sweep_parameters(plain)["mesh"]
+
+
+def test_the_zoned_mesh_is_the_converged_one_with_a_coarsened_far_zone():
+    """``--mesh zoned``: the converged preset's mesh and predicted contact with
+    ``far_coarsening`` 2; ``--far-coarsening 1`` on top of it gives back the shipped mesh (the
+    same input hash as the shipped case)."""
+    specs = build_grid("1.4", "mr")
+    (conv,) = to_3d(specs, Model3DOptions(), {})
+    (zoned,) = to_3d(specs, Model3DOptions(mesh="zoned"), {})
+    assert zoned.mesh == replace(conv.mesh, far_coarsening=2)
+    assert zoned.solver == conv.solver and zoned.solver.predict_contact_below_t == 2.5
+    (back,) = to_3d(specs, Model3DOptions(mesh="zoned", far_coarsening=1), {})
+    assert back == conv and input_hash(back) == input_hash(conv)
 
 
 def test_2d_sweep_with_stick_contact_records_it(tmp_path):
@@ -192,7 +207,8 @@ def test_3d_sweep_with_coulomb_contact_records_the_coefficient(tmp_path):
         (["--model", "3d", "--n-free", "-1"], "--n-free: must be an integer >= 0"),
         (["--model", "3d", "--predict-contact-below", "0"], "--predict-contact-below"),
         (["--model", "3d", "--predict-contact-below", "nan"], "--predict-contact-below"),
-        (["--model", "3d", "--mesh", "fine"], "--mesh: 'fine' unknown; valid: converged, coarse"),
+        (["--model", "3d", "--mesh", "fine"], "valid: converged, coarse, zoned"),
+        (["--model", "3d", "--mesh", "zoned", "--n-layers", "3"], "--mesh zoned: far_coarsening"),
         (["--mesh", "coarse"], "--mesh: only with --model 3d"),
         (["--far-coarsening", "2"], "--far-coarsening: only with --model 3d"),
         (["--model", "3d", "--far-coarsening", "0"], "--far-coarsening: must be an integer >= 1"),
