@@ -7,7 +7,10 @@ For every case both sweeps have: the reference's force on one jaw (N) at gaps 20
 and at 4t, 3t, 2.5t and 2t (t the wall thickness: the crease band 2t..4t and the walls
 meeting), the other's deviation there (%), over the band 2t..4t (400 gaps, log-interpolated
 between the steps) the largest and the median deviation, and the gap (mm) where each reaches
-20 N (the top of the haptic range) with their difference (um).  Then the cost of each case.
+20 N (the top of the haptic range) with their difference (um).  Then the gap at equal force
+(the other's minus the reference's, um, at 2, 5, 10, 20, 50 and 100 N: the measure that stays
+well posed through the crease band, where the two may take different paths), and the cost of
+each case.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from grasprom.fe.datafiles import read_case
 
 GAPS = (20.0, 10.0, 5.0)
 BAND = (4.0, 3.0, 2.5, 2.0)  # multiples of t
+FORCES = (2.0, 5.0, 10.0, 20.0, 50.0, 100.0)  # N, for the gap at equal force
 
 
 def _curve(path: Path) -> tuple[np.ndarray, np.ndarray, dict]:
@@ -74,9 +78,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{m1['stem']:<9} {cells} {100 * np.nanmax(np.abs(band)):8.1f}% "
               f"{100 * np.nanmedian(np.abs(band)):6.1f}% {z1:9.3f} {z2:7.3f} "
               f"{1000 * (z2 - z1):+7.0f}")  # fmt: skip
-        costs.append((m1, m2))
+        costs.append((m1, m2, (g1, f1), (g2, f2)))
+    print("gap at equal force, other - reference (um): " + " ".join(f"{x:g} N" for x in FORCES))
+    for m1, _, (g1, f1), (g2, f2) in costs:
+        d = [1000 * (_gap_at(g2, f2, x) - _gap_at(g1, f1, x)) for x in FORCES]
+        print(f"{m1['stem']:<9} " + " ".join(f"{x:+8.1f}" for x in d))
     print("cost (wall s, DOFs, steps, Newton iterations, failed steps): reference | other")
-    for m1, m2 in costs:
+    for m1, m2, _, _ in costs:
         i1, i2 = m1.get("fe_info", {}), m2.get("fe_info", {})
         cells = [
             f"{i.get('wall_time_s', np.nan):6.0f} {i.get('dofs', 0):6d} {i.get('steps', 0):4d} "
