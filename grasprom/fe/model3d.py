@@ -859,15 +859,14 @@ def _newton(
     that would push inactive nodes deeper than ``0.02 t`` into the jaw or the floor is cut at
     the touch and the solve returns early (``contact_event``) for the active set.  ``fric``
     (:class:`CoulombFriction`) adds the friction potential; ``f`` returned is the internal force
-    without it (at a node in contact: the jaw's reaction), ``K`` the tangent with it.
-    ``start = (u0, f0, K0)``: an assembly without extra potential at ``u0``, reused if the
-    constrained start is ``u0`` (the next active-set pass from the same displacements).
-    ``probe``: after a contact event with predicted contact on (:func:`_predicting`), the
-    displacements of the uncut step (for :func:`_update_active`); None otherwise.
-    ``max_it``: at most this many iterations (default ``SolverSettings.max_newton``).
-    ``stall``: fail once the residual has risen this many iterations in a row (default never).
-    ``unshifted``: fail at the first iteration whose direction needs a Levenberg shift
-    (:func:`grasprom.fe.linsolve.descent_direction`): the tangent is not positive definite there.
+    without it (at a node in contact: the jaw's reaction), ``K`` the tangent with it. ``start =
+    (u0, f0, K0)``: an assembly without extra potential at ``u0``, reused if the constrained
+    start is ``u0`` (the next active-set pass from the same displacements). ``probe``: after a
+    contact event with predicted contact on (:func:`_predicting`), the displacements of the
+    uncut step (for :func:`_update_active`); None otherwise.  ``max_it``: at most this many
+    iterations (default ``SolverSettings.max_newton``); ``stall``: fail once the residual has
+    risen this many iterations in a row (default never); ``unshifted``: fail at the first
+    direction that needs a Levenberg shift (the tangent is not positive definite).
     """
     fixed, values, fr = cons
     u = _enforce(st, u, fixed, values, fr, h)
@@ -896,13 +895,9 @@ def _newton(
         if stall is not None and rises >= stall:
             raise _NewtonFailure(f"residual rose {rises} iterations in a row")
         Kr = fr_.tangent(K, f, st.jaw.r)
-        count = getattr(st.solver, "factorizations", 0)
-        dv = descent_direction(st.solver, _constrained(st, Kr, fr_.fixed, fr_.Q is not None), r)
-        if dv is None:
-            raise _NewtonFailure("no descent direction")
-        if unshifted and getattr(st.solver, "factorizations", 0) > count + 1:
-            raise _NewtonFailure("the tangent needs a Levenberg shift")
-        plain = fr_.Q is None and getattr(st.solver, "factorizations", 0) == count + 1
+        Kc = _constrained(st, Kr, fr_.fixed, fr_.Q is not None)
+        dv, one = _direction(st, Kc, r, unshifted)
+        plain = fr_.Q is None and one
         dv[fr_.fixed] = 0.0
         du = dv if fr_.Q is None else fr_.Q @ dv
         amax = _feasible_alpha(st, c, u, du, cons, h)
@@ -922,6 +917,21 @@ def _newton(
         if event:
             return u, internal(f, u), K, it, True, probe
     raise _NewtonFailure("Newton did not converge")
+
+
+def _direction(st: _Setup, Kc, r, unshifted: bool):
+    """The Newton direction of the constrained tangent ``Kc`` and residual ``r`` (N)
+    (:func:`grasprom.fe.linsolve.descent_direction`) and whether it took exactly one
+    factorisation (no Levenberg shift).  Raises :class:`_NewtonFailure` if there is none, or,
+    with ``unshifted``, if it needed a shift."""
+    count = getattr(st.solver, "factorizations", 0)
+    dv = descent_direction(st.solver, Kc, r)
+    if dv is None:
+        raise _NewtonFailure("no descent direction")
+    done = getattr(st.solver, "factorizations", 0)
+    if unshifted and done > count + 1:
+        raise _NewtonFailure("the tangent needs a Levenberg shift")
+    return dv, done == count + 1
 
 
 def _predict(st: _Setup, u, K, fixed, jump):
