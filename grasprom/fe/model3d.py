@@ -859,14 +859,14 @@ def _newton(
     that would push inactive nodes deeper than ``0.02 t`` into the jaw or the floor is cut at
     the touch and the solve returns early (``contact_event``) for the active set.  ``fric``
     (:class:`CoulombFriction`) adds the friction potential; ``f`` returned is the internal force
-    without it (at a node in contact: the jaw's reaction), ``K`` the tangent with it. ``start =
-    (u0, f0, K0)``: an assembly without extra potential at ``u0``, reused if the constrained
-    start is ``u0`` (the next active-set pass from the same displacements). ``probe``: after a
-    contact event with predicted contact on (:func:`_predicting`), the displacements of the
-    uncut step (for :func:`_update_active`); None otherwise.  ``max_it``: at most this many
-    iterations (default ``SolverSettings.max_newton``); ``stall``: fail once the residual has
-    risen this many iterations in a row (default never); ``unshifted``: fail at the first
-    direction that needs a Levenberg shift (the tangent is not positive definite).
+    without it (at a node in contact: the jaw's reaction), ``K`` the tangent with it.
+    ``start = (u0, f0, K0)``: an assembly without extra potential at ``u0``, reused if the
+    constrained start is ``u0`` (the next active-set pass from the same displacements).
+    ``probe``: after a contact event with predicted contact on (:func:`_predicting`), the
+    displacements of the uncut step (for :func:`_update_active`); None otherwise.
+    ``max_it``: at most this many iterations (default ``SolverSettings.max_newton``).
+    ``stall``: fail once the residual has risen this many iterations in a row (default never).
+    ``unshifted``: fail at the first direction that needs a Levenberg shift (:func:`_direction`).
     """
     fixed, values, fr = cons
     u = _enforce(st, u, fixed, values, fr, h)
