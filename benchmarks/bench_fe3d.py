@@ -973,7 +973,7 @@ class _AttributedSolver:
         f = sys._getframe(1)
         while f is not None:
             names.append(f.f_code.co_name)
-            if f.f_code.co_name == "descent_direction":
+            if f.f_code.co_name == "shifted_descent":
                 shift = f.f_locals.get("shift", 0.0)
             f = f.f_back
         phase = (

@@ -117,6 +117,23 @@ def descent_direction(
         The direction (mm); None if neither ``K`` nor five growing shifts (from 1e-3 times the
         mean absolute diagonal, x10 each) give a finite descent direction.
     """
+    return shifted_descent(solve, K, r)[0]
+
+
+def shifted_descent(
+    solve: Callable[[sp.spmatrix, np.ndarray], np.ndarray], K: sp.csr_matrix, r: np.ndarray
+) -> tuple[np.ndarray | None, float]:
+    """:func:`descent_direction` and the Levenberg shift it took (N/mm; 0.0: the plain ``K``,
+    then the solver's last factor is of ``K``; a factorisation that raised counts as not
+    taken).
+
+    Returns
+    -------
+    du : ndarray or None
+        The direction (mm), None if there is none.
+    shift : float
+        The shift of the ``K + shift I`` that gave ``du`` (N/mm), or the last one tried.
+    """
     shift = 0.0
     for _ in range(6):
         Ks = K if shift == 0.0 else shifted(K, shift)
@@ -125,9 +142,9 @@ def descent_direction(
         except RuntimeError:
             du = None
         if du is not None and np.all(np.isfinite(du)) and r @ du < 0:
-            return du
+            return du, shift
         shift = 1e-3 * abs(K.diagonal()).mean() if shift == 0.0 else shift * 10.0
-    return None
+    return None, shift
 
 
 def shifted(K: sp.spmatrix, shift: float) -> sp.csr_matrix:

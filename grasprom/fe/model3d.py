@@ -49,7 +49,7 @@ from grasprom.fe.crease import (
 )
 from grasprom.fe.hyperelastic3d import invariants as _invariants
 from grasprom.fe.hyperelastic3d import pointwise3d, stress_and_tangent
-from grasprom.fe.linsolve import descent_direction, make_solver, solver_name
+from grasprom.fe.linsolve import make_solver, shifted_descent, solver_name
 from grasprom.fe.materials import Material, get_material
 from grasprom.fe.mesh3d import Disc3D, MeshSpec3D, axial_nodes, discretise3d
 from grasprom.fe.model2d import (
@@ -921,17 +921,17 @@ def _newton(
 
 def _direction(st: _Setup, Kc, r, unshifted: bool):
     """The Newton direction of the constrained tangent ``Kc`` and residual ``r`` (N)
-    (:func:`grasprom.fe.linsolve.descent_direction`) and whether it took exactly one
-    factorisation (no Levenberg shift).  Raises :class:`_NewtonFailure` if there is none, or,
-    with ``unshifted``, if it needed a shift."""
-    count = getattr(st.solver, "factorizations", 0)
-    dv = descent_direction(st.solver, Kc, r)
+    (:func:`grasprom.fe.linsolve.shifted_descent`) and whether it came from ``Kc`` itself,
+    without a Levenberg shift (the solver's last factor is then ``Kc``'s).  Raises
+    :class:`_NewtonFailure` if there is none, or, with ``unshifted``, if it needed a shift
+    (read off the shift, not the factorisation count, which a factorisation that raised does
+    not advance)."""
+    dv, shift = shifted_descent(st.solver, Kc, r)
     if dv is None:
         raise _NewtonFailure("no descent direction")
-    done = getattr(st.solver, "factorizations", 0)
-    if unshifted and done > count + 1:
+    if unshifted and shift != 0.0:
         raise _NewtonFailure("the tangent needs a Levenberg shift")
-    return dv, done == count + 1
+    return dv, shift == 0.0
 
 
 def _predict(st: _Setup, u, K, fixed, jump):

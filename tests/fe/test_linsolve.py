@@ -186,6 +186,36 @@ def test_descent_direction_newton_step_then_levenberg_shift():
     assert descent_direction(solve_symmetric, sp.diags(d, format="csr"), e0) is None
 
 
+def test_shifted_descent_reports_the_shift_it_took():
+    """``shifted_descent`` returns the direction with its shift: 0.0 for the plain Newton step,
+    10 (10 x the mean diagonal 1) for ``K = -I`` (as above), and the shift, not a failed
+    factorisation, decides: a solver that raises on the plain ``K`` (singular) gives the
+    first shift, 1e-3 x the mean diagonal, with ``(K + 1e-3 I)^-1``'s direction."""
+    from grasprom.fe.linsolve import shifted_descent, solve_symmetric
+
+    rng = np.random.default_rng(5)
+    B = rng.standard_normal((6, 6))
+    K = sp.csr_matrix(B @ B.T + 6 * np.eye(6))
+    r = rng.standard_normal(6)
+    du, shift = shifted_descent(solve_symmetric, K, r)
+    assert shift == 0.0 and np.allclose(du, -np.linalg.solve(K.toarray(), r), rtol=1e-12)
+    du, shift = shifted_descent(solve_symmetric, -sp.identity(6, format="csr"), r)
+    assert shift == pytest.approx(10.0) and np.allclose(du, -r / 9.0, rtol=1e-12)
+    calls = []
+
+    def singular_first(A, b):
+        calls.append(1)
+        if len(calls) == 1:
+            raise RuntimeError("factor is exactly singular")
+        return solve_symmetric(A, b)
+
+    du, shift = shifted_descent(singular_first, K, r)
+    m = float(np.abs(K.diagonal()).mean())
+    assert shift == pytest.approx(1e-3 * m)
+    ref = -np.linalg.solve(K.toarray() + 1e-3 * m * np.eye(6), r)
+    np.testing.assert_allclose(du, ref, rtol=1e-10)
+
+
 def test_a_levenberg_shift_keeps_the_pardiso_analysis():
     """A constrained tangent stores zeros in its fixed rows and columns; the shifted matrix
     ``K + s I`` keeps them, so PARDISO reuses its analysis through the shifts and back (one

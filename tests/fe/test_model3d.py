@@ -638,11 +638,12 @@ def test_a_budgeted_solve_stops_when_its_residual_keeps_rising(monkeypatch):
 class _AscentFirst:
     """A :func:`grasprom.fe.linsolve.make_solver` solver whose first Newton direction (the
     first solve once ``armed``) is the ascent direction, as an indefinite tangent past a limit
-    point can give, so that :func:`grasprom.fe.linsolve.descent_direction` retries it with a
+    point can give, so that :func:`grasprom.fe.linsolve.shifted_descent` retries it with a
     Levenberg shift."""
 
-    def __init__(self, inner):
+    def __init__(self, inner, fail: bool = False):
         self.inner, self.calls, self.armed, self.flipped = inner, 0, False, False
+        self.fail = fail  # raise instead (a singular factorisation): no count, no factor
 
     @property
     def factorizations(self) -> int:
@@ -650,6 +651,9 @@ class _AscentFirst:
 
     def __call__(self, K, rhs):
         self.calls += 1
+        if self.armed and not self.flipped and self.fail:
+            self.flipped = True
+            raise RuntimeError("factor is exactly singular")
         x = self.inner(K, rhs)
         if self.armed and not self.flipped:
             self.flipped = True
@@ -661,9 +665,9 @@ class _AscentFirst:
 
 
 def _armed_descent(model3d):
-    """``descent_direction`` that arms an :class:`_AscentFirst` solver (the predictor's solve
+    """``shifted_descent`` that arms an :class:`_AscentFirst` solver (the predictor's solve
     before it is left alone)."""
-    plain = model3d.descent_direction
+    plain = model3d.shifted_descent
 
     def armed(solve, K, r):
         solve.armed = True
@@ -685,10 +689,12 @@ def test_an_unshifted_solve_fails_at_the_first_shifted_direction(monkeypatch):
     same = model3d._solve_step(st, u0, K0, c0, h, unshifted=True)
     assert np.array_equal(same[0], ref[0]) and same[4] == ref[4]
 
-    monkeypatch.setattr(model3d, "descent_direction", _armed_descent(model3d))
-    flipped = replace(st, solver=_AscentFirst(model3d.make_solver("auto")))
-    with pytest.raises(model3d._NewtonFailure, match="Levenberg shift"):
-        model3d._solve_step(flipped, u0, K0, c0, h, unshifted=True)
+    monkeypatch.setattr(model3d, "shifted_descent", _armed_descent(model3d))
+    for fail in (False, True):  # an ascent direction, or a factorisation that raises
+        flipped = replace(st, solver=_AscentFirst(model3d.make_solver("auto"), fail))
+        with pytest.raises(model3d._NewtonFailure, match="Levenberg shift"):
+            model3d._solve_step(flipped, u0, K0, c0, h, unshifted=True)
+        assert flipped.solver.flipped
     flipped = replace(st, solver=_AscentFirst(model3d.make_solver("auto")))
     u, f, _, c, _ = model3d._solve_step(flipped, u0, K0, c0, h)
     assert flipped.solver.flipped
