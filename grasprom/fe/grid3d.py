@@ -84,8 +84,8 @@ MESH_PRESETS: Mapping[str, MeshPreset] = MappingProxyType(
 the jaw, contact predicted below gap 2.5 t: the mesh of the shipped ``fe_data/default``),
 ``coarse`` (the :class:`~grasprom.fe.mesh3d.MeshSpec3D` defaults, 2 x 12: ``fe_data/3d_2x12``,
 converged in bending only) and ``zoned`` (``converged`` over the jaw and its 2 mm margin, 2 x 18
-beyond: ``far_coarsening`` 2, about half the unknowns and the wall time); docs/fe-sweeps.md,
-docs/fe-model.md."""
+beyond: ``far_coarsening`` 2, 56 % of the unknowns and 30 % of the sweep's worker time);
+docs/fe-sweeps.md, docs/fe-model.md."""
 
 DEFAULT_MESH_PRESET = "converged"
 """The ``--mesh`` of ``grasprom sweep --model 3d`` when none is given: the shipped data's."""
@@ -261,7 +261,7 @@ def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, float])
     except ValueError as exc:
         if "far_coarsening" in axial:
             raise SweepInputError(f"--far-coarsening: {exc}") from exc
-        if "far_coarsening" in mesh:  # the preset's, with other mesh options given
+        if "far_coarsening" in mesh and "far_coarsening" in str(exc):  # the preset's
             raise SweepInputError(f"--mesh {opts.mesh}: {exc}") from exc
         raise
     out = []
