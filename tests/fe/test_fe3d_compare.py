@@ -59,6 +59,7 @@ def _force_at(g: np.ndarray, f: np.ndarray, gaps) -> np.ndarray:
 def _gap_at_force(g: np.ndarray, f: np.ndarray, level: float) -> float:
     """First gap (mm) along the path where the force reaches ``level`` (N)."""
     k = int(np.argmax(f >= level))
+    assert k > 0 and f[k] >= level, level  # reached along the path, not at its start
     return float(g[k - 1] + (level - f[k - 1]) / (f[k] - f[k - 1]) * (g[k] - g[k - 1]))
 
 
@@ -100,16 +101,20 @@ def test_the_zoned_sweep_differs_from_the_shipped_one_only_between_branches(stem
 
 def test_the_zoned_sweep_has_cases_whose_band_paths_differ():
     """The branch rule above is not empty: in the crease band at least five of the 21 cases
-    differ by more than 5 % somewhere (150 band gaps of 60 x 21), the lower-energy one from
-    either mesh (neither finds the creased branch every time)."""
-    lower = []
+    differ by more than 5 % in force and 0.05 % in strain energy somewhere (9 cases, 150 of the
+    60 x 21 band gaps measured; at least 100 asserted), the lower-energy one from either mesh
+    (neither finds the creased branch every time)."""
+    lower, checked = [], 0
     for stem in ZONED_STEMS:
         t = float(stem.split("_t")[1])
         gd, fd, ed = _curves("default", stem)
         gz, fz, ez = _curves("3d_zoned", stem)
         band = np.linspace(4.0 * t, 2.05 * t, 60)
         dF = _force_at(gz, fz, band) / _force_at(gd, fd, band) - 1.0
-        if np.abs(dF).max() > 0.05:
-            dE = np.interp(-band[-1], -gz, ez) - np.interp(-band[-1], -gd, ed)
-            lower.append("zoned" if dE < 0 else "default")
+        dE = np.interp(-band, -gz, ez) / np.interp(-band, -gd, ed) - 1.0
+        apart = (np.abs(dF) > 0.05) & (np.abs(dE) > 5e-4)
+        checked += int(apart.sum())
+        if apart.any():
+            lower.append("zoned" if dE[-1] < 0 else "default")
     assert len(lower) >= 5 and set(lower) == {"zoned", "default"}
+    assert checked >= 100  # band gaps the sign rule checks (150 measured)
