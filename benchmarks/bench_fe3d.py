@@ -32,6 +32,8 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py forwardstall  # sweep case mr 0.8: forward stall rule (~1 h)
     python benchmarks/bench_fe3d.py transition    # sweep case, far zone 2 x 18 vs 4 x 36 (~25 min)
     python benchmarks/bench_fe3d.py transition --closed-gap 12   # its bending part (~5 min)
+    python benchmarks/bench_fe3d.py factorreuse   # zoned nh 2.0: GMRES, older factor (~25 min)
+    python benchmarks/bench_fe3d.py factorreuse --materials mr --thickness 0.8  # slowest case
 
 Forces in N, gaps in mm.  t = 1.4 mm, Mooney-Rivlin, unless stated.  Timings are wall-clock on
 whatever machine runs this (noisy when shared).
@@ -924,15 +926,54 @@ def _compare_runs(runs: dict, keys: tuple[str, ...]) -> dict:
     return out
 
 
-def _sweep_case(material: str = "mr", thickness: float = 1.4) -> CaseSpec3D:
-    """The case ``grasprom sweep --model 3d`` runs (its defaults, built the way it builds them:
-    the mesh and solver settings of ``fe_data/default``, whose sidecars record the same spec):
-    4 x 36 graded 8:1, six axial divisions beyond the jaw, 240 mm tube, stick, contact
+def _sweep_case(
+    material: str = "mr", thickness: float = 1.4, mesh: str | None = None
+) -> CaseSpec3D:
+    """The case ``grasprom sweep --model 3d [--mesh MESH]`` runs (its defaults, built the way it
+    builds them: the mesh and solver settings of ``fe_data/default``, whose sidecars record the
+    same spec; ``mesh="zoned"``: those of ``fe_data/3d_zoned``): 4 x 36 graded 8:1 (zoned: 2 x
+    18 beyond the jaw zone), six axial divisions beyond the jaw, 240 mm tube, stick, contact
     predicted below gap 2.5 t, to the force cap, no landing gaps."""
     from grasprom.fe import build_grid
     from grasprom.fe.grid3d import Model3DOptions, to_3d
 
-    return to_3d(build_grid(f"{thickness:g}", material), Model3DOptions(), {})[0]
+    return to_3d(build_grid(f"{thickness:g}", material), Model3DOptions(mesh=mesh), {})[0]
+
+
+def bench_factor_reuse(material: str = "nh", thickness: float = 2.0) -> dict:
+    """Newton solves with GMRES preconditioned by the last factorisation
+    (``model3d.FACTOR_REUSE``) against a factorisation each (before), on the zoned sweep's case
+    (``--mesh zoned``; nh 2.0 mm by default): wall time, factorisations, reuses, GMRES and
+    Newton iterations; the largest force difference above the crease band (g > 4 t) and in it,
+    and the gap at 20, 50 and 100 N (~25 min for both runs at nh 2.0 mm)."""
+    spec = _sweep_case(material, thickness, mesh="zoned")
+    runs = _before_and_current(spec, "FACTOR_REUSE", False, lambda v: f"factor reuse {v}")
+    keys = ("steps", "newton_iterations", "factorizations", "factor_reuses", "krylov_iterations")
+    out = _compare_runs(runs, keys)
+    b, c = (runs[k][1].table for k in ("before", "current"))
+    grid = np.linspace(max(b["gap_mm"].min(), c["gap_mm"].min()), 8.0 * thickness, 800)
+    fb, fc = (np.interp(grid, x["gap_mm"][::-1], x["force_N"][::-1]) for x in (b, c))
+    rel = np.abs(fc / np.maximum(fb, 1e-12) - 1.0)
+    above, band = grid > 4.0 * thickness, (grid >= 2.0 * thickness) & (grid <= 4.0 * thickness)
+    out["max_rel_force_diff"] = {
+        "above_band": float(rel[above].max()),
+        "band": float(rel[band].max()),
+    }
+    rise = (20.0, 50.0, 100.0)
+    out["gap_at_force_mm"] = {
+        k: _gap_at_force(runs[k][1].table, rise, 2.0 * thickness) for k in ("before", "current")
+    }
+    print(
+        f"  force difference current vs before: above the band (g > 4 t) "
+        f"{out['max_rel_force_diff']['above_band']:.1e}, in the band (2t..4t) "
+        f"{100 * out['max_rel_force_diff']['band']:.2f} %; gap at 20/50/100 N (mm): "
+        + "; ".join(
+            f"{k} " + ", ".join(f"{v:.4f}" for v in out["gap_at_force_mm"][k].values())
+            for k in ("before", "current")
+        ),
+        flush=True,
+    )
+    return out
 
 
 def bench_forward_stall(thickness: float = 0.8) -> dict:
@@ -1274,6 +1315,7 @@ SECTIONS = {
     "band": bench_band,
     "stall": bench_stall,
     "forwardstall": bench_forward_stall,
+    "factorreuse": bench_factor_reuse,
     "factors": bench_factors,
     "transition": bench_transition,
 }
@@ -1288,13 +1330,16 @@ def main(argv: list[str]) -> None:
     )
     ap.add_argument("sections", nargs="*", help="sections to run (default: all)")
     ap.add_argument(
-        "--materials", default="mr,le", help="'cases' section: materials (default mr,le)"
+        "--materials",
+        default="mr,le",
+        help="'cases' section: materials (default mr,le); 'factorreuse' (default nh there): the "
+        "first of them",
     )
     ap.add_argument(
         "--thickness",
         default="0.8,1.4,2.0",
-        help="'cases' section: wall thicknesses in mm (default 0.8,1.4,2.0); 'forwardstall': "
-        "the first of them",
+        help="'cases' section: wall thicknesses in mm (default 0.8,1.4,2.0); 'forwardstall' and "
+        "'factorreuse' (default 2.0 there): the first of them",
     )
     ap.add_argument(
         "--closed-gap",
@@ -1332,6 +1377,10 @@ def main(argv: list[str]) -> None:
             results[name] = bench_transition(args.closed_gap or 1.5)
         elif name == "forwardstall":
             results[name] = bench_forward_stall(float(args.thickness.split(",")[0]))
+        elif name == "factorreuse":
+            mat = args.materials.split(",")[0] if args.materials != "mr,le" else "nh"
+            t = float(args.thickness.split(",")[0]) if args.thickness != "0.8,1.4,2.0" else 2.0
+            results[name] = bench_factor_reuse(mat, t)
         else:
             results[name] = SECTIONS[name]()
     text = json.dumps(results, default=str)

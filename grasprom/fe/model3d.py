@@ -49,7 +49,7 @@ from grasprom.fe.crease import (
 )
 from grasprom.fe.hyperelastic3d import invariants as _invariants
 from grasprom.fe.hyperelastic3d import pointwise3d, stress_and_tangent
-from grasprom.fe.linsolve import make_solver, shifted_descent, solver_name
+from grasprom.fe.linsolve import FactorReuse, make_solver, shifted_descent, solver_name
 from grasprom.fe.materials import Material, get_material
 from grasprom.fe.mesh3d import Disc3D, MeshSpec3D, axial_nodes, discretise3d
 from grasprom.fe.model2d import (
@@ -1235,6 +1235,34 @@ def _state_row(spec: CaseSpec3D, st: _Setup, h: float, u, f, c: _Contact, iters:
     return _row(spec, h, contact_measures(st, c, u, f, h), minJ, iters, e), e
 
 
+#: The Newton solves first try the last factorisation as the preconditioner of GMRES
+#: (:class:`grasprom.fe.linsolve.FactorReuse`) and factor only if that does not reach
+#: :data:`FACTOR_REUSE_RTOL` within :data:`FACTOR_REUSE_ITERATIONS` iterations.  The directions
+#: are those of a direct solve up to that residual (the zoned mesh, nh 2.0 mm: the table above
+#: the crease band the same to 1.1e-9).  Off by default: it does not pay.  On the zoned sweep's
+#: cases a Newton iteration costs between 15 % less (nh 2.0 mm) and 8 % more (le 1.4 mm), and
+#: the path through the crease band changes as with any change of round-off, with it the
+#: case's cost (nh 2.0 mm: 869 -> 542 s, 1374 -> 585 factorisations, 580 -> 423 Newton
+#: iterations; mr 0.8 mm: 729 -> 901 iterations, slower);
+#: ``python benchmarks/bench_fe3d.py factorreuse`` (docs/fe-model.md).
+FACTOR_REUSE = False
+
+#: Relative residual ``|K x - r| / |r|`` a solve with an older factor must reach.
+FACTOR_REUSE_RTOL = 1e-9
+
+#: GMRES iterations a solve with an older factor may take before it factors.
+FACTOR_REUSE_ITERATIONS = 10
+
+
+def _make_solver(name: str):
+    """The run's linear solver: :func:`grasprom.fe.linsolve.make_solver`, wrapped in
+    :class:`grasprom.fe.linsolve.FactorReuse` while :data:`FACTOR_REUSE`."""
+    inner = make_solver(name)
+    if not FACTOR_REUSE:
+        return inner
+    return FactorReuse(inner, FACTOR_REUSE_RTOL, FACTOR_REUSE_ITERATIONS)
+
+
 def _setup(spec: CaseSpec3D, solver: str) -> _Setup:
     _validate_spec(spec)
     material = spec.make_material()
@@ -1250,7 +1278,7 @@ def _setup(spec: CaseSpec3D, solver: str) -> _Setup:
         base_fixed=_base_fixed(disc, spec.ends, spec.plane_strain),
         settings=spec.solver,
         fscale=material.mu * t * t,
-        solver=make_solver(solver),
+        solver=_make_solver(solver),
         disc_thickness=t,
     )
 
@@ -1532,6 +1560,9 @@ def solver_rules() -> dict:
         "crease_back_budget": CREASE_BACK_BUDGET,
         "relax_plain_budget": RELAX_PLAIN_BUDGET,
         "relax_plain_unshifted": RELAX_PLAIN_UNSHIFTED,
+        "factor_reuse": FACTOR_REUSE,
+        "factor_reuse_rtol": FACTOR_REUSE_RTOL,
+        "factor_reuse_iterations": FACTOR_REUSE_ITERATIONS,
         "snap_force_drop": SNAP_FORCE_DROP,
         "snap_release_fraction": SNAP_RELEASE_FRACTION,
     }
@@ -1545,6 +1576,8 @@ def _info(spec, st: _Setup, table, reason, total_newton, n_fail, fail_log, h, t0
         "steps": len(table) - 1,
         "newton_iterations": int(total_newton),
         "factorizations": int(getattr(st.solver, "factorizations", -1)),
+        "factor_reuses": int(getattr(st.solver, "reuses", 0)),
+        "krylov_iterations": int(getattr(st.solver, "krylov_iterations", 0)),
         "failures": n_fail,
         "failure_log": fail_log[-20:],
         "last_gap_mm": float(2 * h),

@@ -246,3 +246,47 @@ def test_a_levenberg_shift_keeps_the_pardiso_analysis():
     np.testing.assert_allclose(du, ref, rtol=0, atol=1e-10 * np.abs(ref).max())
     solve(K, r)
     assert solve.analyses == 1
+
+
+@pytest.mark.parametrize("name", ["superlu", "pardiso"])
+def test_factor_reuse_solves_a_nearby_matrix_with_the_older_factor(name):
+    """:class:`FactorReuse`: a matrix 5 % off the factored one is solved without a new
+    factorisation to its ``rtol`` against LAPACK for *that* matrix (not the factored one), and
+    so is ``resolve``; a matrix far off (indefinite) is factored afresh and solved to round-off."""
+    from grasprom.fe.linsolve import FactorReuse, SuperLUSolver
+
+    inner = SuperLUSolver() if name == "superlu" else _pardiso()
+    solve = FactorReuse(inner, rtol=1e-9, max_iterations=10)
+    rng = np.random.default_rng(11)
+    n = 225
+    K0 = _laplacian_2d(15)
+    solve(K0, rng.standard_normal(n))
+    assert (solve.factorizations, solve.reuses) == (1, 0)
+    K1 = sp.csr_matrix(K0 + sp.diags(0.05 * rng.random(n) * K0.diagonal()))
+    for call in (solve, lambda _, b: solve.resolve(b)):
+        rhs = rng.standard_normal(n)
+        x = call(K1, rhs)
+        ref = np.linalg.solve(K1.toarray(), rhs)
+        assert np.linalg.norm(K1 @ x - rhs) <= 1e-9 * np.linalg.norm(rhs)
+        assert np.abs(x - ref).max() <= 1e-7 * np.abs(ref).max()
+        assert np.abs(x - np.linalg.solve(K0.toarray(), rhs)).max() > 1e-3 * np.abs(ref).max()
+    assert (solve.factorizations, solve.reuses) == (1, 1)
+    assert 0 < solve.krylov_iterations <= 2 * 10
+    K2 = sp.csr_matrix(K0 - 3.5 * sp.identity(n))  # indefinite: the old factor is no help
+    rhs = rng.standard_normal(n)
+    x = solve(K2, rhs)
+    assert np.allclose(x, np.linalg.solve(K2.toarray(), rhs), rtol=0, atol=1e-10)
+    assert (solve.factorizations, solve.reuses) == (2, 1)
+    np.testing.assert_allclose(solve.resolve(rhs), x, rtol=0, atol=1e-12)  # its own factor
+
+
+def test_factor_reuse_checks_its_settings_and_needs_a_solve_to_resolve():
+    from grasprom.fe.linsolve import FactorReuse, SuperLUSolver, solver_name
+
+    for kw in ({"rtol": 0.0}, {"rtol": 1.0}, {"max_iterations": 0}, {"give_up_after": 11}):
+        with pytest.raises(ValueError, match="FactorReuse needs"):
+            FactorReuse(SuperLUSolver(), **kw)
+    solve = FactorReuse(SuperLUSolver())
+    assert solver_name(solve).startswith("scipy SuperLU") and "GMRES" in solver_name(solve)
+    with pytest.raises(RuntimeError, match="nothing solved"):
+        solve.resolve(np.ones(4))

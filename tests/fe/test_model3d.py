@@ -450,6 +450,7 @@ def test_predictor_with_the_last_newton_factor_reaches_the_same_equilibrium(
     )
     spec = replace(spec, solver=replace(spec.solver, land_on_gaps_mm=gaps))
     assert model3d.PREDICTOR_REUSES_FACTOR is False  # off by default (the crease band)
+    monkeypatch.setattr(model3d, "FACTOR_REUSE", False)  # every other solve factors
     own = run_case_3d(spec)
     monkeypatch.setattr(model3d, "PREDICTOR_REUSES_FACTOR", True)
     reused = run_case_3d(spec)
@@ -459,6 +460,35 @@ def test_predictor_with_the_last_newton_factor_reaches_the_same_equilibrium(
     n_reused, n_own = reused.info["factorizations"], own.info["factorizations"]
     assert 0 < n_reused < n_own
     assert n_own >= own.info["newton_iterations"]  # a factorisation per Newton iteration at least
+
+
+@pytest.mark.parametrize("contact", ["frictionless", "stick"])
+def test_newton_solves_with_an_older_factor_reach_the_same_equilibria(monkeypatch, contact):
+    """:data:`FACTOR_REUSE` (GMRES preconditioned by the last factorisation, to a relative
+    residual of 1e-9) against a factorisation for every Newton solve: the same steps and
+    forces to 1e-7, with fewer factorisations; the sidecar records the reuses and the rule."""
+    from grasprom.fe import model3d
+
+    gaps = (25.0, 20.0)
+    spec = CaseSpec3D(
+        "mr", 1.4, tube_length_mm=30.0, contact=contact, closed_gap_mm=20.0, mesh=COARSE
+    )
+    spec = replace(spec, solver=replace(spec.solver, land_on_gaps_mm=gaps))
+    assert model3d.FACTOR_REUSE is False  # off by default (docs/fe-model.md)
+    direct = run_case_3d(spec, solver="superlu")
+    monkeypatch.setattr(model3d, "FACTOR_REUSE", True)
+    reused = run_case_3d(spec, solver="superlu")
+    assert len(reused.table) == len(direct.table)
+    np.testing.assert_allclose(reused.table["force_N"], direct.table["force_N"], rtol=1e-7)
+    for g in gaps:
+        assert _at(reused.table, g) == pytest.approx(_at(direct.table, g), rel=1e-7)
+    info, ref = reused.info, direct.info
+    assert info["factor_reuses"] > 0 and ref["factor_reuses"] == 0
+    assert info["factorizations"] < ref["factorizations"]
+    assert info["factorizations"] + info["factor_reuses"] >= ref["factorizations"] // 2
+    assert "GMRES" in info["linear_solver"] and "GMRES" not in ref["linear_solver"]
+    assert ref["solver_rules"]["factor_reuse"] is False
+    assert info["solver_rules"]["factor_reuse_rtol"] == 1e-9
 
 
 def test_coulomb_3d_spans_frictionless_to_stick():
