@@ -1331,13 +1331,13 @@ def main(argv: list[str]) -> None:
     ap.add_argument("sections", nargs="*", help="sections to run (default: all)")
     ap.add_argument(
         "--materials",
-        default="mr,le",
+        default=None,
         help="'cases' section: materials (default mr,le); 'factorreuse' (default nh there): the "
         "first of them",
     )
     ap.add_argument(
         "--thickness",
-        default="0.8,1.4,2.0",
+        default=None,
         help="'cases' section: wall thicknesses in mm (default 0.8,1.4,2.0); 'forwardstall' and "
         "'factorreuse' (default 2.0 there): the first of them",
     )
@@ -1364,8 +1364,8 @@ def main(argv: list[str]) -> None:
     for name in args.sections or list(SECTIONS):
         print(f"== {name}: {SECTIONS[name].__doc__.splitlines()[0]}", flush=True)
         if name == "cases":
-            mats = tuple(args.materials.split(","))
-            ts = tuple(float(x) for x in args.thickness.split(","))
+            mats = tuple((args.materials or "mr,le").split(","))
+            ts = tuple(float(x) for x in (args.thickness or "0.8,1.4,2.0").split(","))
             results[name] = bench_cases(ts, mats)
         elif name == "activeset":
             results[name] = bench_activeset(args.closed_gap or 1.5)
@@ -1376,10 +1376,10 @@ def main(argv: list[str]) -> None:
         elif name == "transition":
             results[name] = bench_transition(args.closed_gap or 1.5)
         elif name == "forwardstall":
-            results[name] = bench_forward_stall(float(args.thickness.split(",")[0]))
+            results[name] = bench_forward_stall(float((args.thickness or "0.8").split(",")[0]))
         elif name == "factorreuse":
-            mat = args.materials.split(",")[0] if args.materials != "mr,le" else "nh"
-            t = float(args.thickness.split(",")[0]) if args.thickness != "0.8,1.4,2.0" else 2.0
+            mat = (args.materials or "nh").split(",")[0]
+            t = float((args.thickness or "2.0").split(",")[0])
             results[name] = bench_factor_reuse(mat, t)
         else:
             results[name] = SECTIONS[name]()
