@@ -227,6 +227,137 @@ def _back_step(solve, cur, h: float, dh: float, dh_min: float, landing, errors):
     return None
 
 
+@dataclass(frozen=True)
+class Unloading:
+    """Result of :func:`unload_band`.
+
+    Attributes
+    ----------
+    states : list of (h, state, newton_iterations)
+        Unloaded states with less strain energy than the loaded ones at the same jaw height
+        ``h`` (mm), in increasing ``h``; the last may be the bisected crossing (a height the
+        loading did not visit).
+    top_mm : float
+        The largest jaw height (mm) the unloading reached.
+    newton_iterations : int
+        Every Newton iteration spent, the bisections included.
+    """
+
+    states: list[tuple[float, Any, int]] = field(default_factory=list)
+    top_mm: float = 0.0
+    newton_iterations: int = 0
+
+
+def unload_band(
+    solve: Callable[[Any, float], tuple[Any, int]],
+    energy_of: Callable[[Any], float],
+    branch: Sequence[tuple[float, float, float]],
+    start: Any,
+    h_start: float,
+    h_top: float,
+    dh: float,
+    errors: tuple[type[BaseException], ...] = (ArithmeticError,),
+    n_halve: int = 0,
+    n_bisect: int = 0,
+    rtol: float = 1e-4,
+) -> Unloading:
+    """Unload a state back up through the crease band and keep it where it holds less strain
+    energy than the loaded branch: a search for the lower-energy branch from the other side.
+
+    Loading follows one branch through the band (the smooth fold, or a crease placed by
+    :func:`crease_onset` after a snap); which one it reaches depends on where the smooth fold
+    loses stability, and so on the mesh and round-off.  Once the walls have met, the state is
+    continued back to larger jaw heights, landing on every loaded height in the band, and
+    compared there with the loaded state (exactly, at the same height).  The continuation goes
+    on while the unloaded state's energy is not above the loaded one's (the same state, or a
+    lower branch: the hysteresis of a snap, or a crease the loading never found) and stops at
+    the first height where it is above (its Maxwell point, bisected against the loaded
+    branch's :func:`hermite_energy`), at ``h_top`` or where a back step fails.
+
+    Parameters
+    ----------
+    solve : callable
+        ``solve(state, h) -> (state, newton_iterations)``: equilibrium at jaw height ``h`` (mm)
+        from ``state``; raises one of ``errors`` if it fails.
+    energy_of : callable
+        Strain energy of a state, in the units of ``branch``.
+    branch : sequence of (h, energy, force)
+        The loaded steps in decreasing ``h`` (mm), as :func:`hermite_energy`'s.
+    start : object
+        The state to unload, at jaw height ``h_start`` (mm).
+    h_top : float
+        Largest jaw height (mm) to continue to (the top of the crease band).
+    dh : float
+        Largest back step (mm); every loaded height in ``(h_start, h_top]`` is landed on.
+    errors : tuple of exception types
+        What a failed solve raises.
+    n_halve, n_bisect : int
+        Halvings of a failed back step (down to ``dh / 2**n_halve``); bisections of the
+        crossing between the last height below and the first above.
+    rtol : float
+        Relative energy difference that counts as another state (lower below ``1 - rtol``
+        of the loaded energy, higher above ``1 + rtol``).  The same fold reached along two
+        paths differs by 1e-5 to 2.5e-4 where stick anchors differ; two crease states by
+        5e-4 and more (measured, docs/fe-model.md).
+
+    Returns
+    -------
+    Unloading
+    """
+    heights = sorted(b[0] for b in branch if h_start + 1e-12 < b[0] <= h_top)
+    loaded = {b[0]: b[1] for b in branch}
+    out: list[tuple[float, Any, int]] = []
+    spent = 0
+    cur, h, h_prev = start, h_start, h_start
+    for hk in heights:
+        h, cur, it = _walk_to(solve, cur, h, hk, dh, dh / 2**n_halve, errors)
+        spent += it
+        if h < hk - 1e-12:
+            return Unloading(out, h, spent)
+        e_u, e_l = energy_of(cur), loaded[hk]
+        if e_u > e_l + rtol * abs(e_l):
+            if out and out[-1][0] == h_prev and n_bisect:
+                crossing = _unload_crossing(
+                    solve, energy_of, branch, out[-1], hk, errors, n_bisect, rtol
+                )
+                spent += crossing[2]
+                if crossing[0] > out[-1][0]:
+                    out.append(crossing)
+            return Unloading(out, h, spent)
+        if e_u < e_l - rtol * abs(e_l):
+            out.append((hk, cur, it))
+        h_prev = hk
+    return Unloading(out, h, spent)
+
+
+def _walk_to(solve, cur, h: float, hk: float, dh: float, dh_min: float, errors):
+    """Back steps of at most ``dh`` (mm) from ``cur`` at jaw height ``h`` up to ``hk`` (mm),
+    each halved on failure down to ``dh_min``.  Returns ``(h, state, newton_iterations)``
+    with the height reached: ``hk``, or less where a step failed at every size."""
+    spent = 0
+    while h < hk - 1e-12:
+        dh_k = min(dh, hk - h)
+        step = _back_step(solve, cur, h, dh_k, min(dh_min, dh_k), (hk,), errors)
+        if step is None:
+            break
+        h, cur, it, _ = step
+        spent += it
+    return h, cur, spent
+
+
+def _unload_crossing(solve, energy_of, branch, prev, hk: float, errors, n_bisect: int, rtol):
+    """Bisect where the unloaded branch, lower at ``prev`` = ``(h, state, its)`` and higher at
+    ``hk`` (mm), crosses the loaded ``branch``'s :func:`hermite_energy`.  Returns
+    ``(h, state, newton_iterations)`` of the last height found lower."""
+
+    def below(state, hh):
+        e_s = hermite_energy(list(branch), hh)
+        return energy_of(state) < e_s - rtol * abs(e_s)
+
+    (hc, sc), it = _bisect_crossing(solve, below, prev[1], prev[0], hk, errors, n_bisect)
+    return hc, sc, it
+
+
 def splice_crease(
     rows: list, branch: list, back: CreaseOnset, entry: Callable
 ) -> tuple[list, list]:

@@ -254,6 +254,12 @@ class SolverSettings:
         of this times the case's thickness); the larger of the two gaps counts.  One value
         serves a thickness sweep (``grasprom sweep --predict-contact-below``), whose cases must
         share their solver settings.
+    unload_from_N : float
+        3D only: once the walls have met (gap below 2 t) and the jaw force has reached this
+        (N), or at the end of a case that ends inside the crease band, the state is unloaded
+        back up through the band (to gap 4 t) and replaces the loaded rows where it holds less
+        strain energy (:func:`grasprom.fe.crease.unload_band`: a lower branch the loading did
+        not reach).  0 (default) turns it off; not with Coulomb friction (it dissipates).
     """
 
     dh_initial_mm: float = 0.05
@@ -272,6 +278,7 @@ class SolverSettings:
     maxwell_crease: bool = True
     predict_contact_below_mm: float = 0.0
     predict_contact_below_t: float = 0.0
+    unload_from_N: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -42,10 +42,12 @@ from grasprom.fe.crease import (
     SNAP_FORCE_DROP,
     SNAP_RELEASE_FRACTION,
     CreaseOnset,
+    Unloading,
     crease_onset,
     hermite_energy,
     is_snap,
     splice_crease,
+    unload_band,
 )
 from grasprom.fe.hyperelastic3d import invariants as _invariants
 from grasprom.fe.hyperelastic3d import pointwise3d, stress_and_tangent
@@ -1382,6 +1384,52 @@ def _crease_onset(st: _Setup, snapped, h_snap: float, branch, t: float, landing)
     )
 
 
+#: Largest back step of the unloading (:func:`_unload`), in wall thicknesses of jaw height:
+#: twice the crease placement's.  Every loaded height in the band is landed on as well.
+UNLOAD_STEP_FRACTION = 0.05
+
+
+def _unload(st: _Setup, state, h: float, branch, t: float) -> Unloading:
+    """Unload ``state = (u, f, K, c)`` at jaw height ``h`` (mm, the walls met) back up through
+    the crease band to ``h = 2 t`` (:func:`grasprom.fe.crease.unload_band`): the states that
+    hold less strain energy than the loaded ``branch`` at its heights, and the crossing."""
+
+    def solve(s, hh: float):
+        u, _, K, c = s
+        u, f, K, c, it = _solve_step(st, u, K, c, hh, budget=CREASE_BACK_BUDGET)
+        return (u, f, K, c), it
+
+    return unload_band(
+        solve,
+        lambda s: energy(st.disc, st.material, s[0]),
+        branch,
+        state,
+        h,
+        2.0 * t,
+        UNLOAD_STEP_FRACTION * t,
+        _STEP_ERRORS,
+        CREASE_BACK_HALVINGS,
+        CREASE_BISECTIONS,
+    )
+
+
+def _splice_unloading(spec: CaseSpec3D, st: _Setup, rows: list, branch: list, un: Unloading):
+    """Put the unloaded states of :func:`_unload` in place of the loaded rows at their jaw
+    heights (a bisected crossing is inserted in order); returns ``(rows, branch)``."""
+    rows, branch = list(rows), list(branch)
+    for hb, (ub, fb, _, cb), itb in un.states:
+        rb, eb = _state_row(spec, st, hb, ub, fb, cb, itb)
+        entry = (hb, eb, 0.25 * rb["force_N"])
+        k = next((i for i, b in enumerate(branch) if b[0] == hb), None)
+        if k is None:
+            k = next(i for i, b in enumerate(branch) if b[0] < hb)
+            rows.insert(k, rb)
+            branch.insert(k, entry)
+        else:
+            rows[k], branch[k] = rb, entry
+    return rows, branch
+
+
 def _splice_crease(spec: CaseSpec3D, st: _Setup, rows: list, branch: list, back: CreaseOnset):
     """Replace the rows (and ``branch`` entries) below the crossing ``back[0]`` by the creased
     states of :func:`_crease_onset` (:func:`grasprom.fe.crease.splice_crease`)."""
@@ -1452,6 +1500,46 @@ def _advance(st: _Setup, u, K, c: _Contact, h: float, dh: float):
     return _relax(st, u, K, c, h)
 
 
+def _first_touch(spec: CaseSpec3D, st: _Setup):
+    """The undeformed state at first touch (jaw height = the tube radius, mm):
+    ``((u, f, K, contact), [row])``."""
+    R = 0.5 * spec.diameter_mm
+    c = _initial_contact(st, R)
+    u = np.zeros(st.disc.ndof)
+    f, K, _ = assemble(st.disc, st.material, u)
+    return (u, f, K, c), [_row(spec, R, contact_measures(st, c, u, f, R), 1.0, 0, 0.0)]
+
+
+def _finished(spec: CaseSpec3D, h: float, force_N: float) -> str:
+    """Why a case ends at jaw height ``h`` (mm) and jaw force ``force_N`` (N), or ``""``."""
+    if force_N >= spec.force_cap_N:
+        return "force cap reached"
+    if h <= 0.5 * spec.closed_gap_mm + 1e-12:
+        return "closed gap reached"
+    return ""
+
+
+def _unload_due(spec: CaseSpec3D, h: float, force_N: float) -> bool:
+    """Whether the unloading of :attr:`SolverSettings.unload_from_N` starts at jaw height ``h``
+    (mm): in the crease band (gap below 4t) once the walls have met (h <= t) and the force
+    reached the threshold (N), or at the last step of a case that ends in the band."""
+    t = spec.thickness_mm
+    end = force_N >= spec.force_cap_N or h <= 0.5 * spec.closed_gap_mm + 1e-12
+    deep = h <= t and force_N >= spec.solver.unload_from_N
+    return h < 2.0 * t and (deep or end)
+
+
+def _unload_rows(spec: CaseSpec3D, st, state, h: float, rows: list, branch: list):
+    """Unload ``state`` at jaw height ``h`` (mm) through the band and splice the lower rows it
+    finds into ``rows``/``branch``.  Returns ``(rows, branch, record)`` with the record of
+    ``fe_info.unloading`` (gaps in mm)."""
+    un = _unload(st, state, h, branch, spec.thickness_mm)
+    rows, branch = _splice_unloading(spec, st, rows, branch, un)
+    record = {"from_gap_mm": 2 * h, "to_gap_mm": 2 * un.top_mm}
+    record |= {"rows_replaced": len(un.states), "newton_iterations": un.newton_iterations}
+    return rows, branch, record
+
+
 def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=None) -> CaseResult:
     """Run one 3D clamping case from first touch to the closed gap or the force cap.
 
@@ -1482,16 +1570,15 @@ def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=N
     s = spec.solver
     R = 0.5 * spec.diameter_mm
     h_end = 0.5 * spec.closed_gap_mm
-    c = _initial_contact(st, R)
-    u = np.zeros(st.disc.ndof)
-    f, K, _ = assemble(st.disc, st.material, u)
-    rows = [_row(spec, R, contact_measures(st, c, u, f, R), 1.0, 0, 0.0)]
+    (u, f, K, c), rows = _first_touch(spec, st)
     branch = [(R, 0.0, 0.0)]  # (h, strain energy, 1/8 jaw reaction) of every row
     maxwell = s.maxwell_crease and spec.contact != "coulomb"  # friction dissipates
     h, dh = R, s.dh_initial_mm
     landing = sorted((0.5 * g for g in s.land_on_gaps_mm), reverse=True)
     n_fail, total_newton, force_prev = 0, 0, 0.0
     t = spec.thickness_mm
+    unload = s.unload_from_N > 0.0 and spec.contact != "coulomb"
+    unloaded: dict = {}
     fail_log: list[dict] = []
     status, reason = "partial", ""
     while True:
@@ -1516,20 +1603,22 @@ def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=N
             total_newton += back.newton_iterations
         rows.append(row)
         branch.append(entry)
+        if unload and not unloaded and _unload_due(spec, h, row["force_N"]):
+            rows, branch, unloaded = _unload_rows(spec, st, (u, f, K, c), h, rows, branch)
+            total_newton += unloaded["newton_iterations"]
         if progress is not None:
             progress(2 * h, row["force_N"])
         if on_step is not None:
             on_step(st.disc, u, 2 * h, row["force_N"])
-        if row["force_N"] >= spec.force_cap_N:
-            status, reason = "complete", "force cap reached"
-            break
-        if h <= h_end + 1e-12:
-            status, reason = "complete", "closed gap reached"
+        if done := _finished(spec, h, row["force_N"]):
+            status, reason = "complete", done
             break
         dh = _next_step(spec, h, dh, iters, row["force_N"], force_prev)
         force_prev = row["force_N"]
     table = pd.DataFrame(rows, columns=list(COLUMNS_3D))
     info = _info(spec, st, table, reason, total_newton, n_fail, fail_log, h, t0)
+    if unload:
+        info["unloading"] = unloaded
     return CaseResult(table=table, status=status, info=info)
 
 

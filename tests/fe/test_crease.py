@@ -4,7 +4,13 @@ analytic energy: a cubic Hermite through (h, E, F = -dE/dh) is exact for a cubic
 import numpy as np
 import pytest
 
-from grasprom.fe.crease import crease_onset, hermite_energy, is_snap, released_energy
+from grasprom.fe.crease import (
+    crease_onset,
+    hermite_energy,
+    is_snap,
+    released_energy,
+    unload_band,
+)
 
 
 def test_hermite_energy_is_exact_for_a_cubic_and_uses_dE_dh_equal_minus_F():
@@ -153,3 +159,71 @@ def test_after_a_halved_back_step_the_next_one_doubles_back_instead_of_retrying_
     assert [round(h, 6) for h, _, _ in out.states] == [1.60625, 1.6, 1.55]
     assert tried == [1.55, 1.6, 1.65, 1.625, 1.6125, 1.60625, 1.61875, 1.6125]
     assert sum(h > 1.607 for h in tried) == 5
+
+
+def _two_branches():
+    """The analytic branches of the tests above as ``(h, energy, force)`` entries: the smooth
+    fold E_s(h) = (3 - h)^2 and the creased state E_c(h) = 0.6 (3 - h)^2 + 0.2 (h - 1), lower
+    below h* = 2.2192, where they cross (F = -dE/dh)."""
+    h_star = 3.0 - (-0.2 + np.sqrt(0.04 + 4 * 0.4 * 0.4)) / (2 * 0.4)
+
+    def smooth(h):
+        return (h, (3.0 - h) ** 2, 2.0 * (3.0 - h))
+
+    def creased(h):
+        return (h, 0.6 * (3.0 - h) ** 2 + 0.2 * (h - 1.0), 1.2 * (3.0 - h) - 0.2)
+
+    return h_star, smooth, creased
+
+
+def test_unloading_keeps_a_lower_branch_the_loading_missed_up_to_its_energy_crossing():
+    """Loading stayed on the smooth fold through the band (rows every 0.1 from h = 2.8 to 1.2);
+    unloading from the creased state at h = 1.1 must replace every row below h* by the creased
+    state (energies equal to E_c exactly), bisect h* to the last interval / 2^10, and stop
+    there; a state that unloads along the loaded branch itself replaces nothing and climbs to
+    the top of the band; one on a higher branch stops at the first height."""
+    h_star, smooth, creased = _two_branches()
+    rows_h = np.round(np.arange(2.8, 1.15, -0.1), 12)
+    branch = [smooth(h) for h in rows_h]
+
+    def solve(state, h):  # the state is (branch, h): unloading follows its branch
+        return (state[0], h), 3
+
+    def energy_of(state):
+        return {"c": creased, "s": smooth, "up": lambda h: (h, smooth(h)[1] + 1.0, 0)}[state[0]](
+            state[1]
+        )[1]
+
+    un = unload_band(solve, energy_of, branch, ("c", 1.1), 1.1, 2.8, 0.04, n_bisect=10)
+    hs = [h for h, _, _ in un.states]
+    assert hs[:-1] == [h for h in sorted(rows_h) if h < h_star]
+    assert hs[-1] == pytest.approx(h_star, abs=0.1 / 2**10) and hs[-1] < h_star
+    assert all(energy_of(s) == pytest.approx(creased(h)[1], rel=1e-14) for h, s, _ in un.states)
+    assert un.top_mm == pytest.approx(2.3)  # stopped at the first loaded height above h*
+    # back steps of at most 0.04 landing on every row: 1.1 -> 2.3 is 12 rows, 3 steps each
+    # of 0.1 -> 0.04, 0.04, 0.02: 36 solves, 3 iterations each, plus the 10 bisections
+    assert un.newton_iterations == 3 * (36 + 10)
+    same = unload_band(solve, energy_of, branch, ("s", 1.1), 1.1, 2.8, 0.04)
+    assert same.states == [] and same.top_mm == pytest.approx(2.8)
+    up = unload_band(solve, energy_of, branch, ("up", 1.1), 1.1, 2.8, 0.04)
+    assert up.states == [] and up.top_mm == pytest.approx(1.2)
+
+
+def test_unloading_stops_where_its_branch_ends_and_keeps_what_it_found():
+    """The creased branch ends at h = 1.75 (no solution above, as at a fold of the branch): the
+    unloading keeps the rows below it, no crossing, and reports how far it got (within an
+    eighth of the 0.04 step of the end with three halvings)."""
+    h_star, smooth, creased = _two_branches()
+    rows_h = np.round(np.arange(2.8, 1.15, -0.1), 12)
+    branch = [smooth(h) for h in rows_h]
+
+    def solve(state, h):
+        if h > 1.75:
+            raise ArithmeticError("no equilibrium")
+        return h, 1
+
+    un = unload_band(
+        solve, lambda h: creased(h)[1], branch, 1.1, 1.1, 2.8, 0.04, n_halve=3, n_bisect=10
+    )
+    assert [h for h, _, _ in un.states] == pytest.approx([1.2, 1.3, 1.4, 1.5, 1.6, 1.7])
+    assert 1.75 - 0.04 / 8 <= un.top_mm <= 1.75
