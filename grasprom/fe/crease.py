@@ -308,7 +308,7 @@ def unload_band(
     loaded = {b[0]: b[1] for b in branch}
     out: list[tuple[float, Any, int]] = []
     spent = 0
-    cur, h, h_prev = start, h_start, h_start
+    cur, h, lower = start, h_start, False  # lower: the last height's state was kept
     for hk in heights:
         h, cur, it = _walk_to(solve, cur, h, hk, dh, dh / 2**n_halve, errors)
         spent += it
@@ -316,7 +316,7 @@ def unload_band(
             return Unloading(out, h, spent)
         e_u, e_l = energy_of(cur), loaded[hk]
         if e_u > e_l + rtol * abs(e_l):
-            if out and out[-1][0] == h_prev and n_bisect:
+            if lower and n_bisect:
                 crossing = _unload_crossing(
                     solve, energy_of, branch, out[-1], hk, errors, n_bisect, rtol
                 )
@@ -324,9 +324,9 @@ def unload_band(
                 if crossing[0] > out[-1][0]:
                     out.append(crossing)
             return Unloading(out, h, spent)
-        if e_u < e_l - rtol * abs(e_l):
+        lower = e_u < e_l - rtol * abs(e_l)
+        if lower:
             out.append((hk, cur, it))
-        h_prev = hk
     return Unloading(out, h, spent)
 
 

@@ -1346,6 +1346,19 @@ CREASE_BACK_HALVINGS = 3
 CREASE_BACK_BUDGET = 20
 
 
+def _back_solver(st: _Setup):
+    """``solve(state, h) -> (state, newton_iterations)`` of a back step to jaw height ``h``
+    (mm) from ``state = (u, f, K, c)``, within :data:`CREASE_BACK_BUDGET` Newton iterations
+    (the crease placement's and the unloading's)."""
+
+    def solve(state, hh: float):
+        u, _, K, c = state
+        u, f, K, c, it = _solve_step(st, u, K, c, hh, budget=CREASE_BACK_BUDGET)
+        return (u, f, K, c), it
+
+    return solve
+
+
 def _crease_onset(st: _Setup, snapped, h_snap: float, branch, t: float, landing):
     """Continue a snapped (creased) state back to larger jaw heights while its strain energy
     stays below the smooth branch's (:func:`grasprom.fe.crease.hermite_energy`), up to the top
@@ -1363,14 +1376,9 @@ def _crease_onset(st: _Setup, snapped, h_snap: float, branch, t: float, landing)
         e_s = hermite_energy(branch, hh)
         return energy(st.disc, st.material, state[0]) < e_s - 1e-10 * abs(e_s)
 
-    def solve(state, hh: float):
-        u, _, K, c = state
-        u, f, K, c, it = _solve_step(st, u, K, c, hh, budget=CREASE_BACK_BUDGET)
-        return (u, f, K, c), it
-
     dh = st.settings.crease_step_fraction * t
     return crease_onset(
-        solve,
+        _back_solver(st),
         below,
         snapped,
         h_snap,
@@ -1393,14 +1401,8 @@ def _unload(st: _Setup, state, h: float, branch, t: float) -> Unloading:
     """Unload ``state = (u, f, K, c)`` at jaw height ``h`` (mm, the walls met) back up through
     the crease band to ``h = 2 t`` (:func:`grasprom.fe.crease.unload_band`): the states that
     hold less strain energy than the loaded ``branch`` at its heights, and the crossing."""
-
-    def solve(s, hh: float):
-        u, _, K, c = s
-        u, f, K, c, it = _solve_step(st, u, K, c, hh, budget=CREASE_BACK_BUDGET)
-        return (u, f, K, c), it
-
     return unload_band(
-        solve,
+        _back_solver(st),
         lambda s: energy(st.disc, st.material, s[0]),
         branch,
         state,
@@ -1413,13 +1415,20 @@ def _unload(st: _Setup, state, h: float, branch, t: float) -> Unloading:
     )
 
 
+def _row_entry(spec: CaseSpec3D, st: _Setup, h: float, state, iters: int):
+    """The table row of ``state = (u, f, K, c)`` at jaw height ``h`` (mm) and its ``branch``
+    entry ``(h, strain energy, 1/8 jaw reaction)`` (mm, N mm, N)."""
+    u, f, _, c = state
+    row, e = _state_row(spec, st, h, u, f, c, iters)
+    return row, (h, e, 0.25 * row["force_N"])
+
+
 def _splice_unloading(spec: CaseSpec3D, st: _Setup, rows: list, branch: list, un: Unloading):
     """Put the unloaded states of :func:`_unload` in place of the loaded rows at their jaw
     heights (a bisected crossing is inserted in order); returns ``(rows, branch)``."""
     rows, branch = list(rows), list(branch)
-    for hb, (ub, fb, _, cb), itb in un.states:
-        rb, eb = _state_row(spec, st, hb, ub, fb, cb, itb)
-        entry = (hb, eb, 0.25 * rb["force_N"])
+    for hb, state, itb in un.states:
+        rb, entry = _row_entry(spec, st, hb, state, itb)
         k = next((i for i, b in enumerate(branch) if b[0] == hb), None)
         if k is None:
             k = next(i for i, b in enumerate(branch) if b[0] < hb)
@@ -1435,9 +1444,7 @@ def _splice_crease(spec: CaseSpec3D, st: _Setup, rows: list, branch: list, back:
     states of :func:`_crease_onset` (:func:`grasprom.fe.crease.splice_crease`)."""
 
     def entry(hb: float, state, itb: int):
-        ub, fb, _, cb = state
-        rb, eb = _state_row(spec, st, hb, ub, fb, cb, itb)
-        return rb, (hb, eb, 0.25 * rb["force_N"])
+        return _row_entry(spec, st, hb, state, itb)
 
     return splice_crease(rows, branch, back, entry)
 
@@ -1519,12 +1526,11 @@ def _finished(spec: CaseSpec3D, h: float, force_N: float) -> str:
     return ""
 
 
-def _unload_due(spec: CaseSpec3D, h: float, force_N: float) -> bool:
+def _unload_due(spec: CaseSpec3D, h: float, force_N: float, end: bool) -> bool:
     """Whether the unloading of :attr:`SolverSettings.unload_from_N` starts at jaw height ``h``
     (mm): in the crease band (gap below 4t) once the walls have met (h <= t) and the force
-    reached the threshold (N), or at the last step of a case that ends in the band."""
+    reached the threshold (N), or at the last step (``end``) of a case that ends in the band."""
     t = spec.thickness_mm
-    end = force_N >= spec.force_cap_N or h <= 0.5 * spec.closed_gap_mm + 1e-12
     deep = h <= t and force_N >= spec.solver.unload_from_N
     return h < 2.0 * t and (deep or end)
 
@@ -1595,22 +1601,22 @@ def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=N
             continue
         u, f, K, c, h = u_new, f_new, K_new, c_new, h - dh
         total_newton += iters
-        row, e = _state_row(spec, st, h, u, f, c, iters)
-        entry = (h, e, 0.25 * row["force_N"])
+        row, entry = _row_entry(spec, st, h, (u, f, K, c), iters)
         if maxwell and t < h < 2.0 * t and is_snap(branch[-1], entry):
             back = _crease_onset(st, (u, f, K, c), h, branch, t, landing)
             rows, branch = _splice_crease(spec, st, rows, branch, back)
             total_newton += back.newton_iterations
         rows.append(row)
         branch.append(entry)
-        if unload and not unloaded and _unload_due(spec, h, row["force_N"]):
+        done = _finished(spec, h, row["force_N"])
+        if unload and not unloaded and _unload_due(spec, h, row["force_N"], bool(done)):
             rows, branch, unloaded = _unload_rows(spec, st, (u, f, K, c), h, rows, branch)
             total_newton += unloaded["newton_iterations"]
         if progress is not None:
             progress(2 * h, row["force_N"])
         if on_step is not None:
             on_step(st.disc, u, 2 * h, row["force_N"])
-        if done := _finished(spec, h, row["force_N"]):
+        if done:
             status, reason = "complete", done
             break
         dh = _next_step(spec, h, dh, iters, row["force_N"], force_prev)
