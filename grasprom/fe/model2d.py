@@ -280,6 +280,12 @@ class SolverSettings:
     predict_contact_below_t: float = 0.0
     unload_from_N: float = 0.0
 
+    def __post_init__(self):
+        if not self.unload_from_N >= 0.0:  # NaN fails too
+            raise ValueError(
+                f"SolverSettings.unload_from_N must be >= 0 N (0 = off), got {self.unload_from_N!r}"
+            )
+
 
 @dataclass(frozen=True)
 class CaseSpec:

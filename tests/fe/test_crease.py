@@ -11,6 +11,7 @@ from grasprom.fe.crease import (
     released_energy,
     unload_band,
 )
+from grasprom.fe.model2d import SolverSettings
 
 
 def test_hermite_energy_is_exact_for_a_cubic_and_uses_dE_dh_equal_minus_F():
@@ -227,3 +228,10 @@ def test_unloading_stops_where_its_branch_ends_and_keeps_what_it_found():
     )
     assert [h for h, _, _ in un.states] == pytest.approx([1.2, 1.3, 1.4, 1.5, 1.6, 1.7])
     assert 1.75 - 0.04 / 8 <= un.top_mm <= 1.75
+
+
+@pytest.mark.parametrize("bad", (-1.0, float("nan")))
+def test_unloading_threshold_must_be_a_force_at_least_zero(bad):
+    assert SolverSettings(unload_from_N=float("inf")).unload_from_N == float("inf")  # end only
+    with pytest.raises(ValueError, match="unload_from_N"):
+        SolverSettings(unload_from_N=bad)
