@@ -425,6 +425,7 @@ class _Setup:
     disc_thickness: float
     mu: float = np.inf  # Coulomb coefficient (finite: contact="coulomb")
     factor: _FactorMemo = field(default_factory=_FactorMemo)
+    on_row: Callable | None = None  # run_case_3d's on_row
 
 
 @dataclass(frozen=True)
@@ -1265,7 +1266,7 @@ def _make_solver(name: str):
     return FactorReuse(inner, FACTOR_REUSE_RTOL, FACTOR_REUSE_ITERATIONS)
 
 
-def _setup(spec: CaseSpec3D, solver: str) -> _Setup:
+def _setup(spec: CaseSpec3D, solver: str, on_row=None) -> _Setup:
     _validate_spec(spec)
     material = spec.make_material()
     disc = build_disc(spec)
@@ -1282,6 +1283,7 @@ def _setup(spec: CaseSpec3D, solver: str) -> _Setup:
         fscale=material.mu * t * t,
         solver=_make_solver(solver),
         disc_thickness=t,
+        on_row=on_row,
     )
 
 
@@ -1420,6 +1422,8 @@ def _row_entry(spec: CaseSpec3D, st: _Setup, h: float, state, iters: int):
     entry ``(h, strain energy, 1/8 jaw reaction)`` (mm, N mm, N)."""
     u, f, _, c = state
     row, e = _state_row(spec, st, h, u, f, c, iters)
+    if st.on_row is not None:
+        st.on_row(st.disc, u, 2.0 * h, row["force_N"])
     return row, (h, e, 0.25 * row["force_N"])
 
 
@@ -1546,7 +1550,18 @@ def _unload_rows(spec: CaseSpec3D, st, state, h: float, rows: list, branch: list
     return rows, branch, record
 
 
-def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=None) -> CaseResult:
+def _report(progress, on_step, disc: Disc3D, u, h: float, force_N: float) -> None:
+    """Call :func:`run_case_3d`'s ``progress`` and ``on_step`` (if given) after a forward step
+    to jaw height ``h`` (mm) with the jaw force ``force_N`` (N)."""
+    if progress is not None:
+        progress(2 * h, force_N)
+    if on_step is not None:
+        on_step(disc, u, 2 * h, force_N)
+
+
+def run_case_3d(
+    spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=None, on_row=None
+) -> CaseResult:
     """Run one 3D clamping case from first touch to the closed gap or the force cap.
 
     Parameters
@@ -1554,16 +1569,18 @@ def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=N
     spec : CaseSpec3D
         Geometry (mm), material, contact, limits, mesh and solver settings.
     progress : callable, optional
-        Called as ``progress(gap_mm, force_N)`` after each converged forward step (rows the
-        crease placement later replaces included: the returned table holds the band).
+        Called as ``progress(gap_mm, force_N)`` after each converged forward step.
     solver : str
-        Sparse solver (:func:`grasprom.fe.linsolve.make_solver`): ``"auto"`` (MKL PARDISO if
-        ``pypardiso`` is installed, else scipy SuperLU), ``"superlu"`` or ``"pardiso"``.  The
-        choice changes the forces only by round-off (tested).
+        Sparse solver (:func:`grasprom.fe.linsolve.make_solver`): ``"auto"`` (PARDISO if
+        installed, else SuperLU), ``"superlu"`` or ``"pardiso"``; round-off apart (tested).
     on_step : callable, optional
-        Called as ``on_step(disc, u, gap_mm, force_N)`` after each converged step with the
-        discretisation and the nodal displacements (mm), e.g. a
-        :class:`grasprom.fe.snapshots3d.SectionRecorder` (forward steps, as ``progress``).
+        Called as ``on_step(disc, u, gap_mm, force_N)`` after each converged forward step with
+        the discretisation and the nodal displacements (mm), e.g. a
+        :class:`grasprom.fe.snapshots3d.SectionRecorder`.
+    on_row : callable, optional
+        As ``on_step``, for every state that enters the table in the order computed: the
+        forward steps and the crease placement's and unloading's states that replace rows
+        (the last call at a gap is the table's state there).
 
     Returns
     -------
@@ -1572,7 +1589,7 @@ def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=N
         ``"complete"``/``"partial"`` and the solver record.
     """
     t0 = time.perf_counter()
-    st = _setup(spec, solver)
+    st = _setup(spec, solver, on_row)
     s = spec.solver
     R = 0.5 * spec.diameter_mm
     h_end = 0.5 * spec.closed_gap_mm
@@ -1584,8 +1601,7 @@ def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=N
     n_fail, total_newton, force_prev = 0, 0, 0.0
     t = spec.thickness_mm
     unload = s.unload_from_N > 0.0 and spec.contact != "coulomb"
-    unloaded: dict = {}
-    fail_log: list[dict] = []
+    unloaded, fail_log = {}, []
     status, reason = "partial", ""
     while True:
         dh = _limit_step(spec, h, dh, h_end, landing)
@@ -1612,10 +1628,7 @@ def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=N
         if unload and not unloaded and _unload_due(spec, h, row["force_N"], bool(done)):
             rows, branch, unloaded = _unload_rows(spec, st, (u, f, K, c), h, rows, branch)
             total_newton += unloaded["newton_iterations"]
-        if progress is not None:
-            progress(2 * h, row["force_N"])
-        if on_step is not None:
-            on_step(st.disc, u, 2 * h, row["force_N"])
+        _report(progress, on_step, st.disc, u, h, row["force_N"])
         if done:
             status, reason = "complete", done
             break
@@ -1626,6 +1639,107 @@ def run_case_3d(spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=N
     if unload:
         info["unloading"] = unloaded
     return CaseResult(table=table, status=status, info=info)
+
+
+@dataclass(frozen=True)
+class Equilibrium3D:
+    """A converged state of a 3D case at one jaw gap (:func:`equilibrium_from`).
+
+    Attributes
+    ----------
+    gap_mm : float
+        Jaw gap (mm).
+    force_N : float
+        Total force on one jaw (N).
+    strain_energy_mJ : float
+        Strain energy of the whole tube (mJ).
+    u : ndarray
+        Nodal displacements (mm) of the case's mesh, ``3 n_nodes``.
+    newton_iterations : int
+        Newton iterations the solve took.
+    row : dict
+        The state's table row (:data:`COLUMNS_3D`).
+    """
+
+    gap_mm: float
+    force_N: float
+    strain_energy_mJ: float
+    u: np.ndarray
+    newton_iterations: int
+    row: dict
+
+
+#: Start states of :func:`equilibrium_from`: an outer node within this share of the wall
+#: thickness of the jaw (or an inner node of the plane ``y = 0``) starts in contact; the
+#: active-set loop releases it if it pulls.
+RESTART_CONTACT_TOL = 1e-3
+
+
+def _contact_at(st: _Setup, u: np.ndarray, h: float) -> _Contact:
+    """Contact state read off a displacement field (mm) at jaw height ``h`` (mm): nodes on or
+    through the jaw and the floor are active, stuck at their jaw projection."""
+    d = st.disc
+    tol = RESTART_CONTACT_TOL * st.disc_thickness
+    xyz = d.X + u.reshape(-1, 3)
+    c = _initial_contact(st, h)
+    c.jaw_active, c.anchor = _jaw_touch(st, xyz, h, -tol)
+    c.floor_active = xyz[d.inner_nodes, 1] < tol
+    c.h = np.nan  # nodes added by the solve stick at their projection
+    return c
+
+
+def equilibrium_from(
+    spec: CaseSpec3D, u0: np.ndarray, gap_mm: float, solver: str = "auto"
+) -> Equilibrium3D:
+    """Equilibrium of a 3D case at one jaw gap, from a given start state.
+
+    The contact state is read off ``u0`` (:data:`RESTART_CONTACT_TOL`; with stick contact
+    every node on the jaw is stuck where it is), then Newton with the active set runs at the
+    jaw height ``gap_mm / 2`` (and the proximal relaxation of a snap if that fails).  With a
+    state of another mesh (:func:`grasprom.fe.transfer3d.transfer_displacement`) as ``u0``,
+    the result is this mesh's state on the same branch of equilibria, if the branch exists here.
+
+    Parameters
+    ----------
+    spec : CaseSpec3D
+        The case (its mesh is the one solved on).
+    u0 : ndarray
+        Start displacements (mm) on ``spec``'s mesh, ``3 n_nodes``.
+    gap_mm : float
+        Jaw gap (mm).
+    solver : str
+        Sparse solver, see :func:`run_case_3d`.
+
+    Returns
+    -------
+    Equilibrium3D
+
+    Raises
+    ------
+    ValueError
+        ``u0`` has the wrong length or the gap is not positive.
+    RuntimeError
+        No equilibrium was found from ``u0``.
+    """
+    st = _setup(spec, solver)
+    u = np.asarray(u0, dtype=float)
+    if u.shape != (st.disc.ndof,):
+        raise ValueError(f"u0 has {u.size} values; the mesh has {st.disc.ndof} dofs")
+    if not (np.isfinite(gap_mm) and gap_mm > 0):
+        raise ValueError(f"invalid gap_mm={gap_mm!r}: a positive jaw gap (mm)")
+    h = 0.5 * float(gap_mm)
+    c = _contact_at(st, u, h)
+    _, K, _ = assemble(st.disc, st.material, u)
+    try:
+        try:
+            u, f, K, c, it = _solve_step(st, u, K, c, h)
+        except _STEP_ERRORS:
+            u, f, K, c, it = _relax(st, u, K, c, h)
+    except _STEP_ERRORS as exc:
+        msg = f"no equilibrium at gap {gap_mm} mm from the given state: {exc}"
+        raise RuntimeError(msg) from exc
+    row, e = _state_row(spec, st, h, u, f, c, it)
+    return Equilibrium3D(2.0 * h, row["force_N"], 8.0 * e, u, it, row)
 
 
 def solver_rules() -> dict:

@@ -823,8 +823,15 @@ def test_3d_crease_is_placed_where_the_work_balances_the_strain_energy():
         def keep(disc, u, gap, force, energies=energies):
             energies[gap] = energy(disc, mat, u)  # N mm, the 1/8 model
 
-        r = run_case_3d(spec, on_step=keep)
+        seen = {}
+
+        def row_state(disc, u, gap, force, seen=seen):
+            seen[gap] = force
+
+        r = run_case_3d(spec, on_step=keep, on_row=row_state)
         assert r.status == "complete"
+        # on_row's last state at each gap is the table's (the crease placement's included)
+        assert [seen[x] for x in r.table["gap_mm"][1:]] == list(r.table["force_N"][1:])
         g = r.table["gap_mm"].to_numpy()
         work = trapezoid_work(r.table) / 8.0  # N mm, the 1/8 model
         before = max(k for k in range(len(g)) if g[k] > 4 * t and g[k] in energies)
