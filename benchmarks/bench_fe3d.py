@@ -26,6 +26,7 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py reuse         # 4 x 36, 240 mm: predictor factor reuse, bending
     python benchmarks/bench_fe3d.py reuse --closed-gap 1.5      # the whole stroke (~30 min)
     python benchmarks/bench_fe3d.py band          # 4 x 48 vs 4 x 36, 240 mm: crease band (~35 min)
+    python benchmarks/bench_fe3d.py commonbranch  # band states moved between the meshes (~1.5 h)
     python benchmarks/bench_fe3d.py stall         # 4 x 36: budgeted solves stop when rising
     python benchmarks/bench_fe3d.py factors       # 4 x 36 sweep case: where factorisations go
     python benchmarks/bench_fe3d.py factors --far-coarsening 2   # the same, 2 x 18 beyond the jaw
@@ -1211,6 +1212,74 @@ def bench_band(meshes=BAND_MESHES, gaps=BAND_GAPS) -> dict:
     return out
 
 
+def _band_states(spec: CaseSpec3D, gaps) -> tuple:
+    """Run ``spec`` keeping the table's state (``on_row``'s last call) at each of ``gaps``
+    (mm): ``(result, {gap: u})``."""
+    states = {}
+
+    def keep(disc, u, gap, force):
+        states[round(gap, 6)] = u.copy()
+
+    r = run_case_3d(spec, on_row=keep)
+    return r, {g: states[round(g, 6)] for g in gaps if round(g, 6) in states}
+
+
+def _moved(spec_from, u, spec_to, gap: float):
+    """``spec_from``'s state ``u`` moved to ``spec_to``'s mesh and solved at ``gap`` (mm):
+    ``(force N, strain energy mJ, Newton iterations)``, NaN where that fails."""
+    from grasprom.fe.model3d import equilibrium_from
+    from grasprom.fe.transfer3d import transfer_displacement
+
+    try:
+        eq = equilibrium_from(spec_to, transfer_displacement(spec_from, u, spec_to), gap)
+    except RuntimeError as exc:
+        print(f"  gap {gap}: {exc}", flush=True)
+        return np.nan, np.nan, 0
+    return eq.force_N, eq.strain_energy_mJ, eq.newton_iterations
+
+
+def bench_commonbranch(meshes=BAND_MESHES, gaps=BAND_GAPS) -> dict:
+    """Crease band of the converged case on 4 x 48 and 4 x 36 (as ``band``), each band state
+    moved to the other mesh and solved there (``grasprom.fe.transfer3d``,
+    ``model3d.equilibrium_from``): the force on a common branch (discretisation error), which
+    branch holds less energy on each mesh, and the two meshes' forces on the lower one
+    (~1.5 h)."""
+    base, _ = _converged_case(2.8)
+    band = [g for g in gaps if 2 * T - 1e-9 <= g <= 4 * T + 1e-9]
+    runs = {}
+    for label, mk in meshes.items():
+        spec = _with_gaps(replace(base, mesh=replace(base.mesh, **mk)), gaps)
+        r, states = _band_states(spec, band)
+        print(f"[{label}] {r.info['newton_iterations']} Newton, {r.info['wall_time_s']:.0f} s")
+        runs[label] = (spec, r.table, states)
+    (la, (sa, ta, ua)), (lb, (sb, tb, ub)) = runs.items()
+    out = {}
+    print(f"  gap | own {la}: F, E | own {lb}: F, E | {lb} on {la}: F, E | {la} on {lb}: F, E"
+          " | lower-energy F on each, apart")  # fmt: skip
+    for g in band:
+        if g not in ua or g not in ub:
+            continue
+        own_a, own_b = (_force_energy(t, g) for t in (ta, tb))
+        b_on_a, a_on_b = _moved(sb, ub[g], sa, g), _moved(sa, ua[g], sb, g)
+        low_a = min((own_a, b_on_a[:2]), key=lambda x: np.nan_to_num(x[1], nan=np.inf))
+        low_b = min((own_b, a_on_b[:2]), key=lambda x: np.nan_to_num(x[1], nan=np.inf))
+        rel = 100.0 * (low_a[0] / low_b[0] - 1.0)
+        out[g] = {"own": (own_a, own_b), "moved": (b_on_a, a_on_b), "lower_apart_pct": rel}
+        print(
+            f"  {g:4.2f} | {own_a[0]:.4f} {own_a[1]:.4f} | {own_b[0]:.4f} {own_b[1]:.4f} | "
+            f"{b_on_a[0]:.4f} {b_on_a[1]:.4f} ({b_on_a[2]}) | {a_on_b[0]:.4f} {a_on_b[1]:.4f} "
+            f"({a_on_b[2]}) | {low_a[0]:.4f} {low_b[0]:.4f} {rel:+.2f} %",
+            flush=True,
+        )
+    return out
+
+
+def _force_energy(table, gap: float) -> tuple[float, float]:
+    """Force (N) and strain energy (mJ) of the row of ``table`` at ``gap`` (mm)."""
+    r = table.iloc[int((table["gap_mm"] - gap).abs().argmin())]
+    return float(r["force_N"]), float(r["strain_energy_mJ"])
+
+
 #: gaps of the zoned mesh's comparison: bending, the crease band, the walls meeting, compaction
 ZONE_GAPS = (25.0, 20.0, 15.0, 10.0, 8.0, 6.0, 5.0, 4.5, 4.0, 3.5, 3.0, 2.9, 2.8, 2.7, 2.6, 2.5)
 
@@ -1313,6 +1382,7 @@ SECTIONS = {
     "activeset": bench_activeset,
     "reuse": bench_reuse,
     "band": bench_band,
+    "commonbranch": bench_commonbranch,
     "stall": bench_stall,
     "forwardstall": bench_forward_stall,
     "factorreuse": bench_factor_reuse,

@@ -1539,6 +1539,18 @@ def _unload_due(spec: CaseSpec3D, h: float, force_N: float, end: bool) -> bool:
     return h < 2.0 * t and (deep or end)
 
 
+def _crease_rows(spec: CaseSpec3D, st, state, h: float, rows: list, branch: list, landing):
+    """Place the crease of a state that snapped at jaw height ``h`` (mm; :func:`_crease_onset`)
+    and splice its creased states into ``rows``/``branch``.  Returns ``(rows, branch, record)``
+    with the record of ``fe_info.creases``: the gap of the snap and of the placed crease (mm;
+    the snap's if nothing was placed), rows replaced, Newton iterations."""
+    back = _crease_onset(st, state, h, branch, spec.thickness_mm, landing)
+    rows, branch = _splice_crease(spec, st, rows, branch, back)
+    placed = back.states[0][0] if back.states else h
+    record = {"snap_gap_mm": 2 * h, "placed_gap_mm": 2 * placed, "rows": len(back.states)}
+    return rows, branch, record | {"newton_iterations": back.newton_iterations}
+
+
 def _unload_rows(spec: CaseSpec3D, st, state, h: float, rows: list, branch: list):
     """Unload ``state`` at jaw height ``h`` (mm) through the band and splice the lower rows it
     finds into ``rows``/``branch``.  Returns ``(rows, branch, record)`` with the record of
@@ -1601,7 +1613,7 @@ def run_case_3d(
     n_fail, total_newton, force_prev = 0, 0, 0.0
     t = spec.thickness_mm
     unload = s.unload_from_N > 0.0 and spec.contact != "coulomb"
-    unloaded, fail_log = {}, []
+    unloaded, fail_log, creases = {}, [], []
     status, reason = "partial", ""
     while True:
         dh = _limit_step(spec, h, dh, h_end, landing)
@@ -1619,9 +1631,9 @@ def run_case_3d(
         total_newton += iters
         row, entry = _row_entry(spec, st, h, (u, f, K, c), iters)
         if maxwell and t < h < 2.0 * t and is_snap(branch[-1], entry):
-            back = _crease_onset(st, (u, f, K, c), h, branch, t, landing)
-            rows, branch = _splice_crease(spec, st, rows, branch, back)
-            total_newton += back.newton_iterations
+            rows, branch, rec = _crease_rows(spec, st, (u, f, K, c), h, rows, branch, landing)
+            creases.append(rec)
+            total_newton += rec["newton_iterations"]
         rows.append(row)
         branch.append(entry)
         done = _finished(spec, h, row["force_N"])
@@ -1636,8 +1648,7 @@ def run_case_3d(
         force_prev = row["force_N"]
     table = pd.DataFrame(rows, columns=list(COLUMNS_3D))
     info = _info(spec, st, table, reason, total_newton, n_fail, fail_log, h, t0)
-    if unload:
-        info["unloading"] = unloaded
+    info |= {"creases": creases} | ({"unloading": unloaded} if unload else {})
     return CaseResult(table=table, status=status, info=info)
 
 
@@ -1719,7 +1730,8 @@ def equilibrium_from(
     ValueError
         ``u0`` has the wrong length or the gap is not positive.
     RuntimeError
-        No equilibrium was found from ``u0``.
+        ``u0`` inverts an element (a sharp fold of a finer mesh moved to a coarser one can), or
+        no equilibrium was found from it.
     """
     st = _setup(spec, solver)
     u = np.asarray(u0, dtype=float)
@@ -1729,7 +1741,10 @@ def equilibrium_from(
         raise ValueError(f"invalid gap_mm={gap_mm!r}: a positive jaw gap (mm)")
     h = 0.5 * float(gap_mm)
     c = _contact_at(st, u, h)
-    _, K, _ = assemble(st.disc, st.material, u)
+    _, K, minJ = assemble(st.disc, st.material, u)
+    if K is None:
+        msg = f"the start state inverts an element of this mesh (min det F = {minJ:.3g})"
+        raise RuntimeError(msg)
     try:
         try:
             u, f, K, c, it = _solve_step(st, u, K, c, h)

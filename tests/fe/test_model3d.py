@@ -838,6 +838,7 @@ def test_3d_crease_is_placed_where_the_work_balances_the_strain_energy():
         excess_before = work[before] / energies[g[before]] - 1
         excess_end = work[-1] / energies[g[-1]] - 1
         out[maxwell] = (r.table, excess_end - excess_before, energies[g[-1]])
+        creases = r.info["creases"]
     (plain, jump0, e0), (ruled, jump1, e1) = out[False], out[True]
     f = plain["force_N"].to_numpy()
     snap = plain["gap_mm"].iloc[next(k for k in range(1, len(f)) if f[k] < f[k - 1] * (1 - 1e-4))]
@@ -847,6 +848,9 @@ def test_3d_crease_is_placed_where_the_work_balances_the_strain_energy():
     same &= np.isclose(plain["force_N"][:n], ruled["force_N"][:n], rtol=1e-9, atol=0)
     placed = ruled["gap_mm"].iloc[int(np.argmin(same))]
     assert 2 * t < snap < placed <= 4 * t + 1e-9
+    # fe_info records the placement (the last run's: with the rule)
+    assert [c["placed_gap_mm"] for c in creases if c["rows"]] == [pytest.approx(placed, abs=1e-12)]
+    assert all(c["snap_gap_mm"] < c["placed_gap_mm"] for c in creases if c["rows"])
     assert jump0 > 0.005  # the snap's released energy (measured 1.47 %), still in the work
     assert abs(jump1) < 0.003
     assert e1 == pytest.approx(e0, rel=1e-3)

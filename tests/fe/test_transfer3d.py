@@ -117,6 +117,11 @@ def test_equilibrium_from_checks_its_inputs():
         equilibrium_from(COARSE_A, np.zeros(n + 3), 20.0)
     with pytest.raises(ValueError, match="gap_mm"):
         equilibrium_from(COARSE_A, np.zeros(n), -1.0)
+    folded = np.zeros((n // 3, 3))
+    folded[build_disc(COARSE_A).X[:, 1] < 7.5, 1] = 40.0  # the lower half up through the upper
+    folded = folded.ravel()
+    with pytest.raises(RuntimeError, match="inverts an element"):
+        equilibrium_from(COARSE_A, folded, 20.0)
 
 
 def test_solver_settings_do_not_matter_to_the_transfer():
