@@ -27,6 +27,7 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py reuse --closed-gap 1.5      # the whole stroke (~30 min)
     python benchmarks/bench_fe3d.py band          # 4 x 48 vs 4 x 36, 240 mm: crease band (~35 min)
     python benchmarks/bench_fe3d.py commonbranch  # band states moved between the meshes (~1.5 h)
+    python benchmarks/bench_fe3d.py crossmesh     # le 1.0: default vs zoned, band states swapped
     python benchmarks/bench_fe3d.py stall         # 4 x 36: budgeted solves stop when rising
     python benchmarks/bench_fe3d.py factors       # 4 x 36 sweep case: where factorisations go
     python benchmarks/bench_fe3d.py factors --far-coarsening 2   # the same, 2 x 18 beyond the jaw
@@ -1261,14 +1262,58 @@ def bench_commonbranch(meshes=BAND_MESHES, gaps=BAND_GAPS) -> dict:
             continue
         own_a, own_b = (_force_energy(t, g) for t in (ta, tb))
         b_on_a, a_on_b = _moved(sb, ub[g], sa, g), _moved(sa, ua[g], sb, g)
-        low_a = min((own_a, b_on_a[:2]), key=lambda x: np.nan_to_num(x[1], nan=np.inf))
-        low_b = min((own_b, a_on_b[:2]), key=lambda x: np.nan_to_num(x[1], nan=np.inf))
+        low_a, low_b = _lower_on(own_a, b_on_a), _lower_on(own_b, a_on_b)
         rel = 100.0 * (low_a[0] / low_b[0] - 1.0)
         out[g] = {"own": (own_a, own_b), "moved": (b_on_a, a_on_b), "lower_apart_pct": rel}
         print(
             f"  {g:4.2f} | {own_a[0]:.4f} {own_a[1]:.4f} | {own_b[0]:.4f} {own_b[1]:.4f} | "
             f"{b_on_a[0]:.4f} {b_on_a[1]:.4f} ({b_on_a[2]}) | {a_on_b[0]:.4f} {a_on_b[1]:.4f} "
             f"({a_on_b[2]}) | {low_a[0]:.4f} {low_b[0]:.4f} {rel:+.2f} %",
+            flush=True,
+        )
+    return out
+
+
+def _lower_on(own: tuple, moved: tuple) -> tuple:
+    """The lower-energy of a mesh's own ``(force, energy)`` and a moved state's."""
+    return moved[:2] if moved[1] < own[1] else own
+
+
+def bench_crossmesh(material: str = "le", thickness: float = 1.0) -> dict:
+    """A sweep case on the default mesh and the zoned one (the same jaw zone, the far zone
+    halved), both landing on the band gaps 4t, 3.8t, ..., 2t and stopping below 2t; each band
+    state moved to the other mesh and solved there: the force on a common start (the far
+    zone's discretisation), which state holds less energy on each mesh, and the two meshes'
+    forces on their lower-energy states (~25 min for le 1.0 mm)."""
+    band = [round(thickness * k / 10, 6) for k in range(40, 19, -2)]
+    runs = {}
+    for mesh in ("default", "zoned"):
+        spec = _sweep_case(material, thickness, None if mesh == "default" else "zoned")
+        solver = replace(spec.solver, land_on_gaps_mm=band)
+        spec = replace(spec, closed_gap_mm=2 * thickness - 0.05, solver=solver)
+        r, states = _band_states(spec, band)
+        placed = [round(c["placed_gap_mm"], 3) for c in r.info["creases"]]
+        print(f"[{mesh}] {r.info['newton_iterations']} Newton, {r.info['wall_time_s']:.0f} s, "
+              f"creases placed at gaps {placed} mm")  # fmt: skip
+        runs[mesh] = (spec, r.table, states)
+    (sd, td, ud), (sz, tz, uz) = runs.values()
+    out = {}
+    print("  gap | default: own F, E | zoned: own F, E | zoned's on default: F, E | default's on "
+          "zoned: F, E | own apart | lower-energy apart")  # fmt: skip
+    for g in band:
+        if g not in ud or g not in uz:
+            continue
+        own_d, own_z = _force_energy(td, g), _force_energy(tz, g)
+        z_on_d, d_on_z = _moved(sz, uz[g], sd, g), _moved(sd, ud[g], sz, g)
+        low_d, low_z = _lower_on(own_d, z_on_d), _lower_on(own_z, d_on_z)
+        own_rel = 100.0 * (own_z[0] / own_d[0] - 1.0)
+        low_rel = 100.0 * (low_z[0] / low_d[0] - 1.0)
+        out[g] = {"own": (own_d, own_z), "moved": (z_on_d, d_on_z)}
+        out[g] |= {"own_apart_pct": own_rel, "lower_apart_pct": low_rel}
+        print(
+            f"  {g:4.2f} | {own_d[0]:.4f} {own_d[1]:.4f} | {own_z[0]:.4f} {own_z[1]:.4f} | "
+            f"{z_on_d[0]:.4f} {z_on_d[1]:.4f} | {d_on_z[0]:.4f} {d_on_z[1]:.4f} | "
+            f"{own_rel:+.2f} % | {low_rel:+.2f} %",
             flush=True,
         )
     return out
@@ -1383,6 +1428,7 @@ SECTIONS = {
     "reuse": bench_reuse,
     "band": bench_band,
     "commonbranch": bench_commonbranch,
+    "crossmesh": bench_crossmesh,
     "stall": bench_stall,
     "forwardstall": bench_forward_stall,
     "factorreuse": bench_factor_reuse,
@@ -1402,14 +1448,15 @@ def main(argv: list[str]) -> None:
     ap.add_argument(
         "--materials",
         default=None,
-        help="'cases' section: materials (default mr,le); 'factorreuse' (default nh there): the "
+        help="'cases' section: materials (default mr,le); 'factorreuse' (default nh there) and "
+        "'crossmesh' (default le): the "
         "first of them",
     )
     ap.add_argument(
         "--thickness",
         default=None,
         help="'cases' section: wall thicknesses in mm (default 0.8,1.4,2.0); 'forwardstall' and "
-        "'factorreuse' (default 2.0 there): the first of them",
+        "'factorreuse' (default 2.0 there), 'crossmesh' (default 1.0): the first of them",
     )
     ap.add_argument(
         "--closed-gap",
@@ -1447,6 +1494,9 @@ def main(argv: list[str]) -> None:
             results[name] = bench_transition(args.closed_gap or 1.5)
         elif name == "forwardstall":
             results[name] = bench_forward_stall(float((args.thickness or "0.8").split(",")[0]))
+        elif name == "crossmesh":
+            mat = (args.materials or "le").split(",")[0]
+            results[name] = bench_crossmesh(mat, float((args.thickness or "1.0").split(",")[0]))
         elif name == "factorreuse":
             mat = (args.materials or "nh").split(",")[0]
             t = float((args.thickness or "2.0").split(",")[0])
