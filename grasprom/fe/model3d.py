@@ -1590,9 +1590,9 @@ def run_case_3d(
         the discretisation and the nodal displacements (mm), e.g. a
         :class:`grasprom.fe.snapshots3d.SectionRecorder`.
     on_row : callable, optional
-        As ``on_step``, for every state that enters the table in the order computed: the
-        forward steps and the crease placement's and unloading's states that replace rows
-        (the last call at a gap is the table's state there).
+        As ``on_step``, for every state after first touch that enters the table, in the order
+        computed: the forward steps and the crease placement's and unloading's states that
+        replace rows (the last call at a table gap is the table's state there).
 
     Returns
     -------
