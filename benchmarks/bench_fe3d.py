@@ -1213,16 +1213,23 @@ def bench_band(meshes=BAND_MESHES, gaps=BAND_GAPS) -> dict:
     return out
 
 
-def _band_states(spec: CaseSpec3D, gaps) -> tuple:
-    """Run ``spec`` keeping the table's state (``on_row``'s last call) at each of ``gaps``
-    (mm): ``(result, {gap: u})``."""
-    states = {}
+def _band_runs(specs: dict, band) -> dict:
+    """Run each of ``specs`` (label -> spec) keeping the table's state (``on_row``'s last call)
+    at each of the ``band`` gaps (mm): ``{label: (spec, table, {gap: u})}``."""
+    runs = {}
+    for label, spec in specs.items():
+        states = {}
 
-    def keep(disc, u, gap, force):
-        states[round(gap, 6)] = u.copy()
+        def keep(disc, u, gap, force, states=states):
+            states[round(gap, 6)] = u.copy()
 
-    r = run_case_3d(spec, on_row=keep)
-    return r, {g: states[round(g, 6)] for g in gaps if round(g, 6) in states}
+        r = run_case_3d(spec, on_row=keep)
+        placed = [round(c["placed_gap_mm"], 3) for c in r.info["creases"]]
+        print(f"[{label}] {r.info['newton_iterations']} Newton, {r.info['wall_time_s']:.0f} s, "
+              f"creases placed at gaps {placed} mm")  # fmt: skip
+        kept = {g: states[round(g, 6)] for g in band if round(g, 6) in states}
+        runs[label] = (spec, r.table, kept)
+    return runs
 
 
 def _moved(spec_from, u, spec_to, gap: float):
@@ -1239,44 +1246,56 @@ def _moved(spec_from, u, spec_to, gap: float):
     return eq.force_N, eq.strain_energy_mJ, eq.newton_iterations
 
 
-def bench_commonbranch(meshes=BAND_MESHES, gaps=BAND_GAPS) -> dict:
-    """Crease band of the converged case on 4 x 48 and 4 x 36 (as ``band``), each band state
-    moved to the other mesh and solved there (``grasprom.fe.transfer3d``,
-    ``model3d.equilibrium_from``): the force on a common branch (discretisation error), which
-    branch holds less energy on each mesh, and the two meshes' forces on the lower one
-    (~1.5 h)."""
-    base, _ = _converged_case(2.8)
-    band = [g for g in gaps if 2 * T - 1e-9 <= g <= 4 * T + 1e-9]
-    runs = {}
-    for label, mk in meshes.items():
-        spec = _with_gaps(replace(base, mesh=replace(base.mesh, **mk)), gaps)
-        r, states = _band_states(spec, band)
-        print(f"[{label}] {r.info['newton_iterations']} Newton, {r.info['wall_time_s']:.0f} s")
-        runs[label] = (spec, r.table, states)
+def _lower_on(own: tuple, moved: tuple) -> tuple:
+    """The lower-energy of a mesh's own ``(force, energy)`` and a moved state's."""
+    return moved[:2] if moved[1] < own[1] else own
+
+
+#: the table columns of a state's force (N) and strain energy (mJ)
+_FE = ("force_N", "strain_energy_mJ")
+
+
+def _swap_band(runs: dict, band) -> dict:
+    """Each band state of the two ``runs`` (:func:`_band_runs`, the reference first) moved to
+    the other mesh and solved there; per gap the own and moved ``(force N, energy mJ[, Newton
+    iterations])`` and, in %, the other run's force against the reference's: own and on each
+    mesh's lower-energy state."""
     (la, (sa, ta, ua)), (lb, (sb, tb, ub)) = runs.items()
     out = {}
-    print(f"  gap | own {la}: F, E | own {lb}: F, E | {lb} on {la}: F, E | {la} on {lb}: F, E"
-          " | lower-energy F on each, apart")  # fmt: skip
+    print(f"  gap | {la}: own F, E | {lb}: own F, E | {lb}'s on {la}: F, E (its) | {la}'s on "
+          f"{lb}: F, E (its) | own apart | lower-energy apart")  # fmt: skip
     for g in band:
         if g not in ua or g not in ub:
             continue
-        own_a, own_b = (_force_energy(t, g) for t in (ta, tb))
+        own_a, own_b = (tuple(_force_at(t, (g,), c)[g] for c in _FE) for t in (ta, tb))
         b_on_a, a_on_b = _moved(sb, ub[g], sa, g), _moved(sa, ua[g], sb, g)
         low_a, low_b = _lower_on(own_a, b_on_a), _lower_on(own_b, a_on_b)
-        rel = 100.0 * (low_a[0] / low_b[0] - 1.0)
-        out[g] = {"own": (own_a, own_b), "moved": (b_on_a, a_on_b), "lower_apart_pct": rel}
+        own_rel = 100.0 * (own_b[0] / own_a[0] - 1.0)
+        low_rel = 100.0 * (low_b[0] / low_a[0] - 1.0)
+        out[g] = {"own": (own_a, own_b), "moved": (b_on_a, a_on_b)}
+        out[g] |= {"own_apart_pct": own_rel, "lower_apart_pct": low_rel}
         print(
             f"  {g:4.2f} | {own_a[0]:.4f} {own_a[1]:.4f} | {own_b[0]:.4f} {own_b[1]:.4f} | "
             f"{b_on_a[0]:.4f} {b_on_a[1]:.4f} ({b_on_a[2]}) | {a_on_b[0]:.4f} {a_on_b[1]:.4f} "
-            f"({a_on_b[2]}) | {low_a[0]:.4f} {low_b[0]:.4f} {rel:+.2f} %",
+            f"({a_on_b[2]}) | {own_rel:+.2f} % | {low_rel:+.2f} %",
             flush=True,
         )
     return out
 
 
-def _lower_on(own: tuple, moved: tuple) -> tuple:
-    """The lower-energy of a mesh's own ``(force, energy)`` and a moved state's."""
-    return moved[:2] if moved[1] < own[1] else own
+def bench_commonbranch(meshes=BAND_MESHES, gaps=BAND_GAPS) -> dict:
+    """Crease band of the converged case on 4 x 48 and 4 x 36 (as ``band``), each band state
+    moved to the other mesh and solved there (``grasprom.fe.transfer3d``,
+    ``model3d.equilibrium_from``): the force on a common start (discretisation error), which
+    state holds less energy on each mesh, and the two meshes' forces on the lower one
+    (~1.5 h)."""
+    base, _ = _converged_case(2.8)
+    band = [g for g in gaps if 2 * T - 1e-9 <= g <= 4 * T + 1e-9]
+    specs = {
+        label: _with_gaps(replace(base, mesh=replace(base.mesh, **mk)), gaps)
+        for label, mk in meshes.items()
+    }
+    return _swap_band(_band_runs(specs, band), band)
 
 
 def bench_crossmesh(material: str = "le", thickness: float = 1.0) -> dict:
@@ -1286,43 +1305,12 @@ def bench_crossmesh(material: str = "le", thickness: float = 1.0) -> dict:
     zone's discretisation), which state holds less energy on each mesh, and the two meshes'
     forces on their lower-energy states (~25 min for le 1.0 mm)."""
     band = [round(thickness * k / 10, 6) for k in range(40, 19, -2)]
-    runs = {}
+    specs = {}
     for mesh in ("default", "zoned"):
         spec = _sweep_case(material, thickness, None if mesh == "default" else "zoned")
         solver = replace(spec.solver, land_on_gaps_mm=band)
-        spec = replace(spec, closed_gap_mm=2 * thickness - 0.05, solver=solver)
-        r, states = _band_states(spec, band)
-        placed = [round(c["placed_gap_mm"], 3) for c in r.info["creases"]]
-        print(f"[{mesh}] {r.info['newton_iterations']} Newton, {r.info['wall_time_s']:.0f} s, "
-              f"creases placed at gaps {placed} mm")  # fmt: skip
-        runs[mesh] = (spec, r.table, states)
-    (sd, td, ud), (sz, tz, uz) = runs.values()
-    out = {}
-    print("  gap | default: own F, E | zoned: own F, E | zoned's on default: F, E | default's on "
-          "zoned: F, E | own apart | lower-energy apart")  # fmt: skip
-    for g in band:
-        if g not in ud or g not in uz:
-            continue
-        own_d, own_z = _force_energy(td, g), _force_energy(tz, g)
-        z_on_d, d_on_z = _moved(sz, uz[g], sd, g), _moved(sd, ud[g], sz, g)
-        low_d, low_z = _lower_on(own_d, z_on_d), _lower_on(own_z, d_on_z)
-        own_rel = 100.0 * (own_z[0] / own_d[0] - 1.0)
-        low_rel = 100.0 * (low_z[0] / low_d[0] - 1.0)
-        out[g] = {"own": (own_d, own_z), "moved": (z_on_d, d_on_z)}
-        out[g] |= {"own_apart_pct": own_rel, "lower_apart_pct": low_rel}
-        print(
-            f"  {g:4.2f} | {own_d[0]:.4f} {own_d[1]:.4f} | {own_z[0]:.4f} {own_z[1]:.4f} | "
-            f"{z_on_d[0]:.4f} {z_on_d[1]:.4f} | {d_on_z[0]:.4f} {d_on_z[1]:.4f} | "
-            f"{own_rel:+.2f} % | {low_rel:+.2f} %",
-            flush=True,
-        )
-    return out
-
-
-def _force_energy(table, gap: float) -> tuple[float, float]:
-    """Force (N) and strain energy (mJ) of the row of ``table`` at ``gap`` (mm)."""
-    r = table.iloc[int((table["gap_mm"] - gap).abs().argmin())]
-    return float(r["force_N"]), float(r["strain_energy_mJ"])
+        specs[mesh] = replace(spec, closed_gap_mm=2 * thickness - 0.05, solver=solver)
+    return _swap_band(_band_runs(specs, band), band)
 
 
 #: gaps of the zoned mesh's comparison: bending, the crease band, the walls meeting, compaction

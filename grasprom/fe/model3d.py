@@ -1733,12 +1733,12 @@ def equilibrium_from(
         ``u0`` inverts an element (a sharp fold of a finer mesh moved to a coarser one can), or
         no equilibrium was found from it.
     """
+    if not (np.isfinite(gap_mm) and gap_mm > 0):
+        raise ValueError(f"invalid gap_mm={gap_mm!r}: a positive jaw gap (mm)")
     st = _setup(spec, solver)
     u = np.asarray(u0, dtype=float)
     if u.shape != (st.disc.ndof,):
         raise ValueError(f"u0 has {u.size} values; the mesh has {st.disc.ndof} dofs")
-    if not (np.isfinite(gap_mm) and gap_mm > 0):
-        raise ValueError(f"invalid gap_mm={gap_mm!r}: a positive jaw gap (mm)")
     h = 0.5 * float(gap_mm)
     c = _contact_at(st, u, h)
     _, K, minJ = assemble(st.disc, st.material, u)
@@ -1746,10 +1746,7 @@ def equilibrium_from(
         msg = f"the start state inverts an element of this mesh (min det F = {minJ:.3g})"
         raise RuntimeError(msg)
     try:
-        try:
-            u, f, K, c, it = _solve_step(st, u, K, c, h)
-        except _STEP_ERRORS:
-            u, f, K, c, it = _relax(st, u, K, c, h)
+        u, f, K, c, it = _advance(st, u, K, c, h, 0.0)  # no jaw step: relaxed if Newton fails
     except _STEP_ERRORS as exc:
         msg = f"no equilibrium at gap {gap_mm} mm from the given state: {exc}"
         raise RuntimeError(msg) from exc

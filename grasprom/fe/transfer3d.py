@@ -5,7 +5,7 @@ trilinear hexahedra, with a 27-node (Q2) displacement field.  A :class:`FieldPro
 that field at any reference points of the tube, so a state computed on one mesh (e.g. a creased
 state of the crease band) can start a solve on another: the two meshes' forces on a *common*
 branch of equilibria measure the discretisation error, apart from which branch each run reached
-(docs/fe-model.md, *The band on a common branch*).
+(docs/fe-model.md, *The band on a common start*).
 """
 
 from __future__ import annotations
@@ -73,6 +73,7 @@ class FieldProbe:
         self._X, self._cells = X, cells
         self._expand = self._disc.out_expand
         self._e1, self._e2 = skfem.ElementHex1(), skfem.ElementHex2()
+        self._centres = X[cells[:, :8]].mean(axis=1)  # of every element's vertices
         r, th = ring_nodes(0.5 * spec.diameter_mm, spec.thickness_mm, spec.mesh)
         z = axial_grid(spec)
         k = spec.mesh.far_coarsening
@@ -89,7 +90,7 @@ class FieldProbe:
 
     def _zone(self, r, th, z) -> _Zone:
         """The elements of a tensor zone, keyed by their cell indices."""
-        cen = self._X[self._cells[:, :8]].mean(axis=1)
+        cen = self._centres
         rho, ang = np.hypot(cen[:, 0], cen[:, 1]), np.arctan2(cen[:, 1], cen[:, 0])
         inside = (cen[:, 2] > z[0]) & (cen[:, 2] < z[-1])
         cell = -np.ones((len(r) - 1, len(th) - 1, len(z) - 1), dtype=np.int64)
@@ -141,7 +142,8 @@ class FieldProbe:
         Raises
         ------
         ValueError
-            A point lies farther outside the tube than :data:`MAX_EXTRAPOLATION` element widths.
+            A point lies farther outside the tube than :data:`MAX_EXTRAPOLATION` of an element's
+            local extent.
         """
         pts = np.asarray(points, dtype=float).reshape(-1, 3)
         cand = self._candidates(pts)
