@@ -28,6 +28,7 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py band          # 4 x 48 vs 4 x 36, 240 mm: crease band (~35 min)
     python benchmarks/bench_fe3d.py commonbranch  # band states moved between the meshes (~1.5 h)
     python benchmarks/bench_fe3d.py crossmesh     # le 1.0: default vs zoned, band states swapped
+    python benchmarks/bench_fe3d.py bandselect    # le 1.0: 4 x 36 vs 4 x 48, each with a companion
     python benchmarks/bench_fe3d.py stall         # 4 x 36: budgeted solves stop when rising
     python benchmarks/bench_fe3d.py factors       # 4 x 36 sweep case: where factorisations go
     python benchmarks/bench_fe3d.py factors --far-coarsening 2   # the same, 2 x 18 beyond the jaw
@@ -1313,6 +1314,68 @@ def bench_crossmesh(material: str = "le", thickness: float = 1.0) -> dict:
     return _swap_band(_band_runs(specs, band), band)
 
 
+def _own_forces(table, selection: dict):
+    """The run's own forces (N): ``table`` with each row that the companion's state replaced
+    given back its own force (``fe_info.band_selection``'s choices)."""
+    own = table.copy()
+    for c in selection["choices"]:
+        if c["taken"]:
+            at = np.isclose(own["gap_mm"], c["gap_mm"], rtol=0.0, atol=1e-9)
+            own.loc[at, "force_N"] = c["own_force_N"]
+    return own
+
+
+def _print_choices(selection: dict) -> None:
+    """One line per band gap of ``fe_info.band_selection``: own, companion and moved state."""
+    print("  gap | own F, E | companion F | moved F, E (Newton) | taken", flush=True)
+    for c in selection["choices"]:
+        mf, me = (np.nan if c[k] is None else c[k] for k in ("moved_force_N", "moved_energy_mJ"))
+        print(f"  {c['gap_mm']:.4f} | {c['own_force_N']:.4f} {c['own_energy_mJ']:.4f} | "
+              f"{c['companion_force_N']:.4f} | {mf:.4f} {me:.4f} ({c['newton_iterations']}) | "
+              f"{c['taken']} {c['error']}", flush=True)  # fmt: skip
+
+
+def bench_bandselect(material: str = "le", thickness: float = 1.0, n_circ: int = 48) -> dict:
+    """The sweep's case with a companion run (``--band-companion 2``) on the default mesh (4 x
+    36) and on its refinement 4 x ``n_circ``, both to just below the crease band: per run the
+    companion's choices, then the two meshes apart over the band (2t..4t, dense: 400 gaps,
+    log-interpolated between rows) with their own rows and with the selected ones (~1 h for
+    le 1.0 mm)."""
+    from grasprom.fe.bandselect import run_case_3d_selected
+
+    t = thickness
+    grid = np.linspace(2 * t, 4 * t, 400)
+    out: dict = {}
+    for nc in (36, n_circ):
+        spec = _sweep_case(material, t)
+        solver = replace(spec.solver, band_companion=2)
+        spec = replace(spec, mesh=replace(spec.mesh, n_circ=nc), solver=solver)
+        r = run_case_3d_selected(replace(spec, closed_gap_mm=2 * t - 0.05))
+        sel, info = r.info["band_selection"], r.info
+        label = f"4 x {nc}"
+        placed = [round(c["placed_gap_mm"], 3) for c in info["creases"]]
+        print(f"[{label}] own run {info['own_wall_time_s']:.0f} s, creases at {placed} mm; "
+              f"companion and moves {sel['wall_time_s']:.0f} s, creases at "
+              f"{sel['crease_gaps_mm']} mm", flush=True)  # fmt: skip
+        _print_choices(sel)
+        own = _own_forces(r.table, sel)
+        out[label] = {"own": _dense_band(own, grid), "selected": _dense_band(r.table, grid)}
+        out[label] |= {"selection": sel, "own_wall_s": info["own_wall_time_s"]}
+    ref, other = (out[f"4 x {nc}"] for nc in (36, n_circ))
+    for kind in ("own", "selected"):
+        d = np.abs(other[kind] / ref[kind] - 1.0)
+        k = int(np.argmax(d))
+        stats = {"max": float(d.max()), "at_gap_mm": float(grid[k])}
+        stats |= {"median": float(np.median(d)), "beyond_3pct": float((d > 0.03).mean())}
+        out[kind + "_apart"] = stats
+        print(f"  4 x {n_circ} vs 4 x 36, {kind} rows: max {stats['max']:.1%} at gap "
+              f"{stats['at_gap_mm']:.2f} mm, median {stats['median']:.2%}, beyond 3 %: "
+              f"{stats['beyond_3pct']:.0%}", flush=True)  # fmt: skip
+    for v in (ref, other):
+        v["own"], v["selected"] = v["own"].tolist(), v["selected"].tolist()
+    return out
+
+
 #: gaps of the zoned mesh's comparison: bending, the crease band, the walls meeting, compaction
 ZONE_GAPS = (25.0, 20.0, 15.0, 10.0, 8.0, 6.0, 5.0, 4.5, 4.0, 3.5, 3.0, 2.9, 2.8, 2.7, 2.6, 2.5)
 
@@ -1417,6 +1480,7 @@ SECTIONS = {
     "band": bench_band,
     "commonbranch": bench_commonbranch,
     "crossmesh": bench_crossmesh,
+    "bandselect": bench_bandselect,
     "stall": bench_stall,
     "forwardstall": bench_forward_stall,
     "factorreuse": bench_factor_reuse,
@@ -1437,14 +1501,14 @@ def main(argv: list[str]) -> None:
         "--materials",
         default=None,
         help="'cases' section: materials (default mr,le); 'factorreuse' (default nh there) and "
-        "'crossmesh' (default le): the "
-        "first of them",
+        "'crossmesh' and 'bandselect' (default le): the first of them",
     )
     ap.add_argument(
         "--thickness",
         default=None,
         help="'cases' section: wall thicknesses in mm (default 0.8,1.4,2.0); 'forwardstall' and "
-        "'factorreuse' (default 2.0 there), 'crossmesh' (default 1.0): the first of them",
+        "'factorreuse' (default 2.0 there), 'crossmesh' and 'bandselect' (default 1.0): the "
+        "first of them",
     )
     ap.add_argument(
         "--closed-gap",
@@ -1485,6 +1549,9 @@ def main(argv: list[str]) -> None:
         elif name == "crossmesh":
             mat = (args.materials or "le").split(",")[0]
             results[name] = bench_crossmesh(mat, float((args.thickness or "1.0").split(",")[0]))
+        elif name == "bandselect":
+            mat = (args.materials or "le").split(",")[0]
+            results[name] = bench_bandselect(mat, float((args.thickness or "1.0").split(",")[0]))
         elif name == "factorreuse":
             mat = (args.materials or "nh").split(",")[0]
             t = float((args.thickness or "2.0").split(",")[0])

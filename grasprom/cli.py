@@ -291,6 +291,17 @@ def _add_mesh3d_options(s: argparse.ArgumentParser) -> None:
         "time (default 1: one cross-section along the tube, the shipped data's)",
     )
     s.add_argument(
+        "--band-companion",
+        type=int,
+        default=None,
+        metavar="K",
+        help="3d: after each case a companion run on its mesh with --far-coarsening K lands on "
+        "the case's crease-band gaps (2t-4t); where its state, moved to the case's mesh, holds "
+        "less strain energy it replaces the case's row (two runs can reach different crease "
+        "patterns; this keeps the lower one; 2 with the default mesh: about 1.5-2x the time; "
+        "default 0, off; grasprom.fe.bandselect)",
+    )
+    s.add_argument(
         "--predict-contact-below",
         type=float,
         default=None,
@@ -548,6 +559,7 @@ def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
         args.predict_contact_below,
         args.mesh,
         far_coarsening=args.far_coarsening,
+        band_companion=args.band_companion,
     )
     try:
         check_options(args.model, opts3d)

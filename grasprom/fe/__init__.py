@@ -7,8 +7,9 @@ Modules: ``materials`` (constitutive laws), ``model2d`` (the plane-strain clampe
 format) with ``atomicio`` (atomic writes, JSON encoding) and ``provenance`` (versions, git
 revision, time stamps), ``report`` (summary table) and ``plots`` (force-gap figure); ``model3d``
 (the 3D tube, :func:`run_case_3d`; :func:`equilibrium_from` solves one gap from a given
-state), ``transfer3d`` (a 3D field moved to another mesh, :func:`transfer_displacement`) and
-``ccx`` (the same case in CalculiX, :func:`run_ccx`).
+state), ``transfer3d`` (a 3D field moved to another mesh, :func:`transfer_displacement`),
+``bandselect`` (the crease band's lower-energy state across the case's run and a companion
+run's, :func:`run_case_3d_selected`) and ``ccx`` (the same case in CalculiX, :func:`run_ccx`).
 
 The names below are imported on first use (PEP 562), so ``import grasprom.fe.materials`` or
 ``from grasprom.fe import MATERIAL_NAMES`` does not pull in scikit-fem and pandas.
@@ -27,6 +28,8 @@ _LAZY = {
     "Equilibrium3D": "model3d",
     "transfer_displacement": "transfer3d",
     "FieldProbe": "transfer3d",
+    "run_case_3d_selected": "bandselect",
+    "BandSelection": "bandselect",
     "run_ccx": "ccx",
     "CaseResult": "model2d",
     "CaseSpec": "model2d",

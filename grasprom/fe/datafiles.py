@@ -192,7 +192,11 @@ def sha256_file(path: str | os.PathLike[str]) -> str:
     return h.hexdigest()
 
 
-NEUTRAL_FIELDS = (("mesh", "far_coarsening", 1), ("solver", "unload_from_N", 0.0))
+NEUTRAL_FIELDS = (
+    ("mesh", "far_coarsening", 1),
+    ("solver", "unload_from_N", 0.0),
+    ("solver", "band_companion", 0),
+)
 """``(group, field, value)`` of spec fields added after data was written without them: at this
 value a field is left out of :func:`spec_record` (the value the files written before it were
 computed with), so those files stay current for a resumed sweep and for the manifest checks."""

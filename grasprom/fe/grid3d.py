@@ -121,6 +121,10 @@ class Model3DOptions:
     far_coarsening : int or None
         Cross-section coarsening beyond the fine zone over the jaw
         (:class:`~grasprom.fe.mesh3d.MeshSpec3D` ``far_coarsening``; 1 = one cross-section).
+    band_companion : int or None
+        ``SolverSettings.band_companion``: the ``far_coarsening`` of a companion run whose
+        crease-band states replace the case's where they hold less strain energy
+        (:mod:`grasprom.fe.bandselect`); 0 or None: off.
     """
 
     contact: str | None = None
@@ -132,6 +136,7 @@ class Model3DOptions:
     predict_contact_below_t: float | None = None
     mesh: str | None = None
     far_coarsening: int | None = None
+    band_companion: int | None = None
 
     def given_3d_only(self) -> list[str]:
         """The CLI names of the options given that only the 3D model takes."""
@@ -143,6 +148,7 @@ class Model3DOptions:
             ("--predict-contact-below", self.predict_contact_below_t),
             ("--mesh", self.mesh),
             ("--far-coarsening", self.far_coarsening),
+            ("--band-companion", self.band_companion),
         )
         return [name for name, v in flags if v is not None]
 
@@ -178,10 +184,12 @@ def check_options(model: str, opts: Model3DOptions) -> None:
 
 
 def _check_axial(opts: Model3DOptions) -> None:
-    """``--n-jaw`` >= 1, ``--n-free`` >= 0 and ``--far-coarsening`` >= 1 (integers);
-    ``--predict-contact-below`` a multiple of the wall thickness in (0, 100]."""
+    """``--n-jaw`` >= 1, ``--n-free`` >= 0, ``--far-coarsening`` >= 1 and
+    ``--band-companion`` >= 0 (integers); ``--predict-contact-below`` a multiple of the wall
+    thickness in (0, 100]."""
     ints = (("--n-jaw", opts.n_jaw, 1), ("--n-free", opts.n_free, 0))
-    for name, v, least in ints + (("--far-coarsening", opts.far_coarsening, 1),):
+    ints += (("--far-coarsening", opts.far_coarsening, 1),)
+    for name, v, least in ints + (("--band-companion", opts.band_companion, 0),):
         if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v < least):
             raise SweepInputError(f"{name}: must be an integer >= {least}, got {v!r}")
     m = opts.predict_contact_below_t
@@ -255,6 +263,7 @@ def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, float])
     extra["friction"] = float(opts.friction) if opts.contact == "coulomb" else 0.0
     axial = {k: extra.pop(k) for k in ("n_jaw", "n_free", "far_coarsening") if k in extra}
     below_t = extra.pop("predict_contact_below_t", preset.predict_contact_below_t)
+    companion = int(extra.pop("band_companion", 0))
     extra.pop("mesh", None)
     try:
         mesh3d = MeshSpec3D(**{**mesh, **axial})
@@ -264,6 +273,11 @@ def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, float])
         if "far_coarsening" in mesh and "far_coarsening" in str(exc):  # the preset's
             raise SweepInputError(f"--mesh {opts.mesh}: {exc}") from exc
         raise
+    if companion:
+        try:
+            dataclasses.replace(mesh3d, far_coarsening=companion)
+        except ValueError as exc:
+            raise SweepInputError(f"--band-companion: the companion mesh: {exc}") from exc
     out = []
     for s in specs:
         spec = CaseSpec3D(
@@ -276,10 +290,8 @@ def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, float])
             mesh=mesh3d,
             **extra,
         )
+        solver = dataclasses.replace(spec.solver, band_companion=companion)
         if below_t is not None:  # in thicknesses, so that the cases share their settings
-            spec = dataclasses.replace(
-                spec,
-                solver=dataclasses.replace(spec.solver, predict_contact_below_t=float(below_t)),
-            )
-        out.append(spec)
+            solver = dataclasses.replace(solver, predict_contact_below_t=float(below_t))
+        out.append(dataclasses.replace(spec, solver=solver))
     return out

@@ -260,6 +260,13 @@ class SolverSettings:
         back up through the band (to gap 4 t) and replaces the loaded rows where it holds less
         strain energy (:func:`grasprom.fe.crease.unload_band`: a lower branch the loading did
         not reach).  0 (default) turns it off; not with Coulomb friction (it dissipates).
+    band_companion : int
+        3D only: after the case, a companion run on its mesh with the far zone coarsened by
+        this factor (``MeshSpec3D.far_coarsening``; the shipped default mesh's zoned twin for
+        2) lands on the case's crease-band gaps, and wherever its state, moved to the case's
+        mesh and solved there, holds less strain energy, it replaces the case's row
+        (:func:`grasprom.fe.bandselect.run_case_3d_selected`, which the sweep runs).  0
+        (default) turns it off.
     """
 
     dh_initial_mm: float = 0.05
@@ -279,11 +286,18 @@ class SolverSettings:
     predict_contact_below_mm: float = 0.0
     predict_contact_below_t: float = 0.0
     unload_from_N: float = 0.0
+    band_companion: int = 0
 
     def __post_init__(self):
         if not self.unload_from_N >= 0.0:  # NaN fails too
             raise ValueError(
                 f"SolverSettings.unload_from_N must be >= 0 N (0 = off), got {self.unload_from_N!r}"
+            )
+        k = self.band_companion
+        if isinstance(k, bool) or not isinstance(k, int | np.integer) or k < 0:
+            raise ValueError(
+                "SolverSettings.band_companion must be an integer >= 0 (a far_coarsening; "
+                f"0 = off), got {k!r}"
             )
 
 
@@ -1360,3 +1374,8 @@ def _validate_spec(spec: CaseSpec) -> None:
                 f"invalid solver.{name}={value!r}: "
                 "predicted contact is 3D only (--model 3d); the 2D model takes 0"
             )
+    if spec.solver.band_companion != 0:
+        raise ValueError(
+            f"invalid solver.band_companion={spec.solver.band_companion!r}: the band's companion "
+            "run is 3D only (--model 3d); the 2D model takes 0"
+        )

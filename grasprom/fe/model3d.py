@@ -1513,7 +1513,13 @@ def _advance(st: _Setup, u, K, c: _Contact, h: float, dh: float):
 
 def _first_touch(spec: CaseSpec3D, st: _Setup):
     """The undeformed state at first touch (jaw height = the tube radius, mm):
-    ``((u, f, K, contact), [row])``."""
+    ``((u, f, K, contact), [row])``; a ValueError if ``spec`` asks for a companion run (not
+    :func:`run_case_3d`'s job)."""
+    if spec.solver.band_companion != 0:
+        raise ValueError(
+            f"solver.band_companion={spec.solver.band_companion}: a case with a companion run "
+            "is run by grasprom.fe.bandselect.run_case_3d_selected (run_case_3d is its own run)"
+        )
     R = 0.5 * spec.diameter_mm
     c = _initial_contact(st, R)
     u = np.zeros(st.disc.ndof)
@@ -1571,6 +1577,7 @@ def _report(progress, on_step, disc: Disc3D, u, h: float, force_N: float) -> Non
         on_step(disc, u, 2 * h, force_N)
 
 
+# the continuation loop and its docstring: one loop, its branches delegated to helpers
 def run_case_3d(
     spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=None, on_row=None
 ) -> CaseResult:
@@ -1599,6 +1606,12 @@ def run_case_3d(
     CaseResult
         Table (columns :data:`COLUMNS_3D`, units in :data:`COLUMN_DESCRIPTIONS_3D`), status
         ``"complete"``/``"partial"`` and the solver record.
+
+    Raises
+    ------
+    ValueError
+        An invalid spec, or one with ``solver.band_companion`` set: that case is run by
+        :func:`grasprom.fe.bandselect.run_case_3d_selected`.
     """
     t0 = time.perf_counter()
     st = _setup(spec, solver, on_row)

@@ -267,16 +267,18 @@ def _worker_init(parent_pid: int) -> None:
 
 def default_runner(spec: CaseSpec) -> CaseResult:
     """Run one case with the real FE model: :func:`grasprom.fe.model2d.run_case`, or
-    :func:`grasprom.fe.model3d.run_case_3d` for a ``CaseSpec3D``.
+    :func:`grasprom.fe.bandselect.run_case_3d_selected` for a ``CaseSpec3D`` (the plain
+    :func:`grasprom.fe.model3d.run_case_3d` unless ``solver.band_companion`` asks for a
+    companion run).
 
     Module-level (picklable) so process pools and Dask workers can import it.
     """
     if df.model_keys(spec)["model"] == "3d":
-        from grasprom.fe.model3d import run_case_3d
+        from grasprom.fe.bandselect import run_case_3d_selected
         from grasprom.fe.snapshots3d import SectionRecorder
 
         rec = SectionRecorder()
-        res = run_case_3d(spec, on_step=rec)
+        res = run_case_3d_selected(spec, on_step=rec)
         return CaseResult(res.table, res.status, {**res.info, "sections": rec.result()})
     from grasprom.fe.model2d import run_case
 

@@ -147,6 +147,21 @@ def test_3d_sweep_takes_the_far_coarsening(tmp_path):
     assert "far_coarsening" not in sweep_parameters(plain)["mesh"]
 
 
+def test_3d_sweep_takes_the_band_companion(tmp_path):
+    """``--band-companion 2`` reaches the solver settings and the sidecar, with the companion's
+    record (this stroke ends above the crease band: no band gaps); without it the sidecar's
+    spec does not name the field (files written before it stay current)."""
+    out = tmp_path / "companion"
+    argv = ["sweep", "--thickness", "1.4", "--material", "mr", "--workers", "1", "--quiet"]
+    extra = ["--n-layers", "2", "--band-companion", "2"]
+    assert main([*argv, "--out", str(out), "--model", "3d", *COARSE, *extra]) == 0
+    meta = json.loads((out / "mr_t1.40.json").read_text())
+    assert meta["spec"]["solver"]["band_companion"] == 2 and meta["status"] == "complete"
+    assert meta["fe_info"]["band_selection"]["status"] == "no band gaps"
+    (plain,) = to_3d(build_grid("1.4", "mr"), Model3DOptions(), {})
+    assert "band_companion" not in sweep_parameters(plain)["solver"]
+
+
 def test_the_zoned_mesh_is_the_converged_one_with_a_coarsened_far_zone():
     """``--mesh zoned``: the converged preset's mesh and predicted contact with
     ``far_coarsening`` 2; ``--far-coarsening 1`` on top of it gives back the shipped mesh (the
@@ -213,6 +228,9 @@ def test_3d_sweep_with_coulomb_contact_records_the_coefficient(tmp_path):
         (["--far-coarsening", "2"], "--far-coarsening: only with --model 3d"),
         (["--model", "3d", "--far-coarsening", "0"], "--far-coarsening: must be an integer >= 1"),
         (["--model", "3d", "--far-coarsening", "5"], "--far-coarsening: far_coarsening=5 must"),
+        (["--band-companion", "2"], "--band-companion: only with --model 3d"),
+        (["--model", "3d", "--band-companion", "-1"], "--band-companion: must be an integer >= 0"),
+        (["--model", "3d", "--band-companion", "5"], "--band-companion: the companion mesh: far"),
     ],
 )
 def test_3d_options_that_do_not_fit_are_clear_errors(tmp_path, capsys, extra, needle):
