@@ -31,6 +31,12 @@ def _sweep(out, *extra):
                  "--quiet", "--out", str(out), *extra])  # fmt: skip
 
 
+def _sweep_3d_meta(out, *extra):
+    """The sidecar of the coarse 3D case run with ``extra`` options into ``out``."""
+    assert _sweep(out, "--model", "3d", *COARSE, *extra) == 0
+    return json.loads((out / "mr_t1.40.json").read_text())
+
+
 def test_3d_sweep_writes_the_contract_and_the_model_keys(tmp_path, capsys):
     out = tmp_path / "s3d"
     assert _sweep(out, "--model", "3d", *COARSE) == 0
@@ -135,11 +141,7 @@ def test_3d_sweep_defaults_to_the_shipped_mesh(capsys):
 def test_3d_sweep_takes_the_far_coarsening(tmp_path):
     """``--far-coarsening 2`` reaches the mesh and the sidecar (with it, and only then, the
     sidecar's spec records the field: files written before it stay current)."""
-    out = tmp_path / "zoned"
-    argv = ["sweep", "--thickness", "1.4", "--material", "mr", "--workers", "1", "--quiet"]
-    mesh = ["--n-layers", "2", "--far-coarsening", "2"]
-    assert main([*argv, "--out", str(out), "--model", "3d", *COARSE, *mesh]) == 0
-    meta = json.loads((out / "mr_t1.40.json").read_text())
+    meta = _sweep_3d_meta(tmp_path / "zoned", "--n-layers", "2", "--far-coarsening", "2")
     assert meta["spec"]["mesh"]["far_coarsening"] == 2 and meta["status"] == "complete"
     # 2 x 8 over the jaw zone (its interface plane tied), 1 x 4 over the 9 divisions beyond
     assert meta["fe_info"]["dofs"] == 3 * (5 * 17 * 8 + 3 * 9 * 19)
@@ -151,11 +153,7 @@ def test_3d_sweep_takes_the_band_companion(tmp_path):
     """``--band-companion 2`` reaches the solver settings and the sidecar, with the companion's
     record (this stroke ends above the crease band: no band gaps); without it the sidecar's
     spec does not name the field (files written before it stay current)."""
-    out = tmp_path / "companion"
-    argv = ["sweep", "--thickness", "1.4", "--material", "mr", "--workers", "1", "--quiet"]
-    extra = ["--n-layers", "2", "--band-companion", "2"]
-    assert main([*argv, "--out", str(out), "--model", "3d", *COARSE, *extra]) == 0
-    meta = json.loads((out / "mr_t1.40.json").read_text())
+    meta = _sweep_3d_meta(tmp_path / "companion", "--n-layers", "2", "--band-companion", "2")
     assert meta["spec"]["solver"]["band_companion"] == 2 and meta["status"] == "complete"
     assert meta["fe_info"]["band_selection"]["status"] == "no band gaps"
     (plain,) = to_3d(build_grid("1.4", "mr"), Model3DOptions(), {})
