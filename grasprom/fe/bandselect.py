@@ -32,13 +32,15 @@ import numpy as np
 
 from grasprom.fe.model2d import CaseResult
 from grasprom.fe.model3d import CaseSpec3D, equilibrium_from, run_case_3d
-from grasprom.fe.transfer3d import transfer_displacement
+from grasprom.fe.transfer3d import transfer_matrix
 
 __all__ = [
     "BAND_ENERGY_RTOL",
     "BandChoice",
     "BandSelection",
+    "NOT_LANDED",
     "band_gaps",
+    "check_companion",
     "companion_spec",
     "companion_states",
     "run_case_3d_selected",
@@ -47,11 +49,12 @@ __all__ = [
 
 #: A moved state replaces the case's own where its strain energy is lower by more than this
 #: share.  With stick contact the anchors are history: states of one branch reached along two
-#: paths differ by them (le 1.0 mm, the default mesh's states against the zoned companion's
-#: moved onto it, above the crease: 1.9e-4 to 2.5e-4 of the energy, the force within
-#: 0.03 %; a coarse case in bending: 2.7e-5, ``tests/fe/test_bandselect.py``), while the
-#: crease patterns that separate two runs differ by 0.24-1.6 % from 0.1 mm past the crease on
-#: (le 1.0 mm and mr 1.6 mm, docs/fe-model.md).
+#: paths differ by them (le 1.0 mm, the companion's states moved onto the case's mesh above
+#: the crease: 1.9-2.0e-4 of the energy lower on 4 x 36, 2.7-4.2e-4 on 4 x 48, the force
+#: within 0.16 %; a coarse case in bending: 2.7e-5, ``tests/fe/test_bandselect.py``), while
+#: the crease patterns that separate two runs differ by 0.24-0.77 % (le 1.0 mm, from 0.1 mm
+#: past the crease; docs/fe-model.md).  Patterns closer than that stay as each run found them
+#: (mr 1.6 mm, default against zoned: 0.06-0.25 %, the forces within 1.5 %).
 BAND_ENERGY_RTOL = 1e-3
 
 #: A companion row counts as landed on a requested gap within this distance (mm): a landing
@@ -108,7 +111,9 @@ class BandSelection:
     far_coarsening : int
         The companion mesh's ``MeshSpec3D.far_coarsening``.
     status : str
-        The companion run's status (``complete``: it reached the lowest band gap).
+        The companion run's status (``complete``: it reached the lowest band gap or the force
+        cap, ``partial``), ``no band gaps`` (the case has no row in the band) or
+        ``error: ...`` (the companion run failed; the case keeps its own rows).
     newton_iterations : int
         Newton iterations of the companion run and of the moved states' solves.
     wall_time_s : float
@@ -167,22 +172,62 @@ def band_gaps(table, thickness_mm: float, band: tuple[float, float] | None = Non
     return sorted(set(sel.tolist()), reverse=True)
 
 
-def companion_spec(spec: CaseSpec3D, gaps, far_coarsening: int) -> CaseSpec3D:
-    """The companion of ``spec``: its mesh with ``far_coarsening``, landing on ``gaps`` (mm)
-    besides ``spec``'s own landing gaps, and ending at the lowest of them (or ``spec``'s
-    closed gap if that is lower); no companion of its own.
+def check_companion(spec: CaseSpec3D, far_coarsening: int) -> None:
+    """Whether ``spec`` can have a companion with ``far_coarsening`` (checked before the case
+    runs, so that a bad setting does not cost the case's run).
 
     Raises
     ------
     ValueError
-        No gaps, or the mesh does not take ``far_coarsening``.
+        Coulomb contact (friction dissipates: strain energy does not rank its states, as
+        for Maxwell's crease placement), ``far_coarsening`` equal to the case's own (the
+        companion would be the same mesh), or one the mesh does not take (it must divide the
+        layers and the circumferential divisions).
+    """
+    if spec.contact == "coulomb":
+        raise ValueError(
+            "not with Coulomb contact (friction dissipates, so the strain energy does not rank "
+            "the states)"
+        )
+    if int(far_coarsening) == spec.mesh.far_coarsening:
+        raise ValueError(
+            f"band_companion={far_coarsening} is the case's own far_coarsening: the companion "
+            "must be another mesh"
+        )
+    replace(spec.mesh, far_coarsening=int(far_coarsening))  # MeshSpec3D checks it
+
+
+def companion_spec(spec: CaseSpec3D, gaps, far_coarsening: int) -> CaseSpec3D:
+    """The companion case of ``spec``.
+
+    Parameters
+    ----------
+    spec : CaseSpec3D
+        The case.
+    gaps : sequence of float
+        The case's band gaps (mm) the companion lands on, besides ``spec``'s own landing gaps.
+    far_coarsening : int
+        The companion mesh's ``MeshSpec3D.far_coarsening`` (:func:`check_companion`).
+
+    Returns
+    -------
+    CaseSpec3D
+        ``spec`` on the companion mesh, ending at the lowest of ``gaps`` (or ``spec``'s closed
+        gap if that is lower), without unloading (``unload_from_N`` 0: it would unload from
+        its end in the band) and without a companion of its own.
+
+    Raises
+    ------
+    ValueError
+        No gaps, or :func:`check_companion` refuses.
     """
     gaps = [float(g) for g in gaps]
     if not gaps:
         raise ValueError("companion_spec: no band gaps to land on")
+    check_companion(spec, far_coarsening)
     mesh = replace(spec.mesh, far_coarsening=int(far_coarsening))
     landing = tuple(sorted(set(spec.solver.land_on_gaps_mm) | set(gaps), reverse=True))
-    solver = replace(spec.solver, land_on_gaps_mm=landing, band_companion=0)
+    solver = replace(spec.solver, land_on_gaps_mm=landing, band_companion=0, unload_from_N=0.0)
     closed = max(spec.closed_gap_mm, min(gaps))
     return replace(spec, mesh=mesh, solver=solver, closed_gap_mm=closed)
 
@@ -203,32 +248,35 @@ def companion_states(companion: CaseSpec3D, gaps, solver: str = "auto"):
     -------
     (CaseResult, dict)
         The companion's run and ``{gap: (force_N, u)}``: its table's force (N) and state
-        (``on_row``'s last call there; displacements in mm) at each gap it has a row at.
+        (``on_row``'s last call there; displacements in mm) at each of ``gaps`` it has a row
+        at (a companion stopped early, e.g. at the force cap, lacks the lower ones).
     """
     gaps = [float(g) for g in gaps]
     states: dict[float, tuple[float, np.ndarray]] = {}
-    lo, hi = min(gaps) - LANDING_TOL_MM, max(gaps) + LANDING_TOL_MM
 
     def keep(disc, u, gap, force):
-        if lo <= gap <= hi:
-            states[gap] = (force, u.copy())
+        for g in gaps:
+            if abs(gap - g) <= LANDING_TOL_MM:
+                states[g] = (force, u.copy())
 
     res = run_case_3d(companion, solver=solver, on_row=keep)
     rows = np.asarray(res.table["gap_mm"], dtype=float)
-    landed = {}
-    for g in gaps:
-        near = [k for k in states if abs(k - g) <= LANDING_TOL_MM]
-        if near and np.any(np.abs(rows - g) <= LANDING_TOL_MM):  # a row of its table there
-            landed[g] = states[min(near, key=lambda k: abs(k - g))]
+    landed = {g: v for g, v in states.items() if np.any(np.abs(rows - g) <= LANDING_TOL_MM)}
     return res, landed
+
+
+#: What a failed move raises: no equilibrium or an inverted element (RuntimeError), a node
+#: outside the other mesh (ValueError), an overflow (FloatingPointError).
+_MOVE_ERRORS = (RuntimeError, ValueError, FloatingPointError)
 
 
 def select_lower(
     spec: CaseSpec3D,
     result: CaseResult,
     companion: CaseSpec3D,
-    states: dict[float, np.ndarray],
+    states: dict[float, tuple[float, np.ndarray]],
     solver: str = "auto",
+    gaps=None,
 ) -> tuple[CaseResult, tuple[BandChoice, ...]]:
     """Replace the rows of ``result`` by the companion's states where those, solved on
     ``spec``'s mesh, hold less strain energy.
@@ -246,26 +294,39 @@ def select_lower(
         displacements (mm) at gaps of ``result``'s table.
     solver : str
         Sparse solver (:func:`~grasprom.fe.model3d.run_case_3d`).
+    gaps : sequence of float, optional
+        All the band gaps (mm); those without a companion state are recorded as such.
 
     Returns
     -------
     (CaseResult, tuple of BandChoice)
-        The table with the replaced rows (the rest unchanged) and the choice at each gap, in
-        decreasing gap.
+        The table with the replaced rows (the rest unchanged; ``info.max_force_N`` of the
+        new table) and the choice at each gap, in decreasing gap.
+
+    Raises
+    ------
+    ValueError
+        A gap of ``states`` (or ``gaps``) that is not a row of ``result``.
     """
     table = result.table.copy()
     tab_gaps = table["gap_mm"].to_numpy(dtype=float)
+    P = transfer_matrix(companion, spec) if states else None
     choices = []
-    for g in sorted(states, reverse=True):
+    for g in sorted(set(states) | set(gaps or ()), reverse=True):
         i = int(np.argmin(np.abs(tab_gaps - g)))
         if abs(tab_gaps[i] - g) > LANDING_TOL_MM:
             raise ValueError(f"select_lower: no row of the case at gap {g} mm")
-        own_f, own_e = (float(table.iloc[i][c]) for c in ("force_N", "strain_energy_mJ"))
+        own = tuple(float(table.iloc[i][c]) for c in ("force_N", "strain_energy_mJ"))
+        if g not in states:
+            nan = math.nan
+            choices.append(BandChoice(g, *own, nan, nan, nan, 0, False, NOT_LANDED))
+            continue
+        own_f, own_e = own
         comp_f, u_c = states[g]
         try:
-            u0 = transfer_displacement(companion, u_c, spec)
+            u0 = np.asarray(P @ np.asarray(u_c).reshape(-1, 3)).ravel()
             eq = equilibrium_from(spec, u0, float(tab_gaps[i]), solver)
-        except RuntimeError as exc:
+        except _MOVE_ERRORS as exc:
             nan = math.nan
             choices.append(BandChoice(g, own_f, own_e, comp_f, nan, nan, 0, False, str(exc)))
             continue
@@ -274,7 +335,12 @@ def select_lower(
             table.iloc[i] = [eq.row[c] for c in table.columns]
         moved = (eq.force_N, eq.strain_energy_mJ, eq.newton_iterations)
         choices.append(BandChoice(g, own_f, own_e, comp_f, *moved, taken))
-    return CaseResult(table=table, status=result.status, info=dict(result.info)), tuple(choices)
+    info = {**result.info, "max_force_N": float(table["force_N"].max())}
+    return CaseResult(table=table, status=result.status, info=info), tuple(choices)
+
+
+#: ``BandChoice.error`` of a band gap the companion has no state at.
+NOT_LANDED = "the companion has no state at this gap"
 
 
 def run_case_3d_selected(
@@ -293,7 +359,8 @@ def run_case_3d_selected(
         The case; ``spec.solver.band_companion`` (>= 1) is the companion mesh's
         ``far_coarsening`` (0: the plain run, :func:`~grasprom.fe.model3d.run_case_3d`).
     progress, solver, on_step
-        As :func:`~grasprom.fe.model3d.run_case_3d`, for the case's own run.
+        As :func:`~grasprom.fe.model3d.run_case_3d`, for the case's own run (``on_step``
+        sees the own run's states, also at the rows the selection replaces).
     band : (float, float), optional
         ``(lowest, highest)`` jaw gap (mm) of the band; default ``(2 t, 4 t)``.
 
@@ -301,9 +368,17 @@ def run_case_3d_selected(
     -------
     CaseResult
         The table with the selected rows; ``info`` as the own run's, with ``band_selection``
-        (:meth:`BandSelection.record`), ``own_wall_time_s`` and ``wall_time_s`` the total.
+        (:meth:`BandSelection.record`; its ``status`` is ``error: ...`` and the own rows are
+        kept if the companion run fails), ``own_wall_time_s`` and ``wall_time_s`` the total.
+
+    Raises
+    ------
+    ValueError
+        An invalid spec, or a companion :func:`check_companion` refuses (before the run).
     """
     k = spec.solver.band_companion
+    if k:
+        check_companion(spec, k)
     own_spec = replace(spec, solver=replace(spec.solver, band_companion=0))
     res = run_case_3d(own_spec, progress, solver, on_step)
     if k == 0:
@@ -311,11 +386,14 @@ def run_case_3d_selected(
     t0 = time.perf_counter()
     gaps = band_gaps(res.table, spec.thickness_mm, band)
     if not gaps:
-        sel = BandSelection(k, "no band gaps", 0, 0.0, (), ())
-        return _with_selection(res, sel, 0.0)
+        return _with_selection(res, BandSelection(k, "no band gaps", 0, 0.0, (), ()), 0.0)
     comp = companion_spec(own_spec, gaps, k)
-    comp_res, states = companion_states(comp, gaps, solver)
-    out, choices = select_lower(own_spec, res, comp, states, solver)
+    try:
+        comp_res, states = companion_states(comp, gaps, solver)
+    except _MOVE_ERRORS as exc:
+        sel = BandSelection(k, f"error: {exc}", 0, 0.0, (), ())
+        return _with_selection(res, sel, time.perf_counter() - t0)
+    out, choices = select_lower(own_spec, res, comp, states, solver, gaps)
     newton = comp_res.info["newton_iterations"] + sum(c.newton_iterations for c in choices)
     creases = tuple(float(c["placed_gap_mm"]) for c in comp_res.info.get("creases", ()))
     sel = BandSelection(k, comp_res.status, newton, 0.0, creases, choices)
@@ -323,9 +401,12 @@ def run_case_3d_selected(
 
 
 def _with_selection(res: CaseResult, sel: BandSelection, seconds: float) -> CaseResult:
-    """``res`` with ``info.band_selection`` and the wall times (s) of the run and the selection."""
+    """``res`` with ``info.band_selection``, the spec's ``band_companion`` in ``info.solver``
+    and the wall times (s) of the run and the selection."""
     sel = replace(sel, wall_time_s=seconds)
     own = float(res.info.get("wall_time_s", 0.0))
     info = {**res.info, "band_selection": sel.record(), "own_wall_time_s": own}
+    if isinstance(info.get("solver"), dict):
+        info["solver"] = {**info["solver"], "band_companion": sel.far_coarsening}
     info["wall_time_s"] = own + seconds
     return CaseResult(table=res.table, status=res.status, info=info)

@@ -273,11 +273,6 @@ def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, float])
         if "far_coarsening" in mesh and "far_coarsening" in str(exc):  # the preset's
             raise SweepInputError(f"--mesh {opts.mesh}: {exc}") from exc
         raise
-    if companion:
-        try:
-            dataclasses.replace(mesh3d, far_coarsening=companion)
-        except ValueError as exc:
-            raise SweepInputError(f"--band-companion: the companion mesh: {exc}") from exc
     out = []
     for s in specs:
         spec = CaseSpec3D(
@@ -294,4 +289,19 @@ def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, float])
         if below_t is not None:  # in thicknesses, so that the cases share their settings
             solver = dataclasses.replace(solver, predict_contact_below_t=float(below_t))
         out.append(dataclasses.replace(spec, solver=solver))
+    if companion:
+        _check_companion(out[0] if out else None, companion)
     return out
+
+
+def _check_companion(spec, companion: int) -> None:
+    """``--band-companion``: :func:`grasprom.fe.bandselect.check_companion` of a case (the
+    cases share mesh and contact), as a SweepInputError."""
+    if spec is None:
+        return
+    from grasprom.fe.bandselect import check_companion
+
+    try:
+        check_companion(spec, companion)
+    except ValueError as exc:
+        raise SweepInputError(f"--band-companion: {exc}") from exc

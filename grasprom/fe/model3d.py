@@ -1577,7 +1577,6 @@ def _report(progress, on_step, disc: Disc3D, u, h: float, force_N: float) -> Non
         on_step(disc, u, 2 * h, force_N)
 
 
-# the continuation loop and its docstring: one loop, its branches delegated to helpers
 def run_case_3d(
     spec: CaseSpec3D, progress=None, solver: str = "auto", on_step=None, on_row=None
 ) -> CaseResult:
@@ -1590,28 +1589,23 @@ def run_case_3d(
     progress : callable, optional
         Called as ``progress(gap_mm, force_N)`` after each converged forward step.
     solver : str
-        Sparse solver (:func:`grasprom.fe.linsolve.make_solver`): ``"auto"`` (PARDISO if
-        installed, else SuperLU), ``"superlu"`` or ``"pardiso"``; round-off apart (tested).
+        Sparse solver (:func:`grasprom.fe.linsolve.make_solver`; ``"auto"``: PARDISO if there).
     on_step : callable, optional
-        Called as ``on_step(disc, u, gap_mm, force_N)`` after each converged forward step with
-        the discretisation and the nodal displacements (mm), e.g. a
-        :class:`grasprom.fe.snapshots3d.SectionRecorder`.
+        Called as ``on_step(disc, u, gap_mm, force_N)`` after each converged forward step (the
+        nodal displacements in mm), e.g. a :class:`grasprom.fe.snapshots3d.SectionRecorder`.
     on_row : callable, optional
-        As ``on_step``, for every state after first touch that enters the table, in the order
-        computed: the forward steps and the crease placement's and unloading's states that
-        replace rows (the last call at a table gap is the table's state there).
+        As ``on_step``, for every state after first touch that enters the table, crease
+        placement and unloading included (the last call at a table gap is the table's state).
 
     Returns
     -------
     CaseResult
-        Table (columns :data:`COLUMNS_3D`, units in :data:`COLUMN_DESCRIPTIONS_3D`), status
-        ``"complete"``/``"partial"`` and the solver record.
+        Table (:data:`COLUMNS_3D`, units :data:`COLUMN_DESCRIPTIONS_3D`), status and record.
 
     Raises
     ------
     ValueError
-        An invalid spec, or one with ``solver.band_companion`` set: that case is run by
-        :func:`grasprom.fe.bandselect.run_case_3d_selected`.
+        An invalid spec, or ``solver.band_companion`` set (:mod:`grasprom.fe.bandselect`).
     """
     t0 = time.perf_counter()
     st = _setup(spec, solver, on_row)

@@ -170,6 +170,33 @@ class FieldProbe:
         return P if self._expand is None else (P @ self._expand).tocsr()
 
 
+def transfer_matrix(spec_from, spec_to) -> sp.csr_matrix:
+    """The interpolation of one mesh's nodal field at the nodes of another mesh of the tube.
+
+    Parameters
+    ----------
+    spec_from, spec_to : grasprom.fe.model3d.CaseSpec3D
+        The cases of the source and the target mesh: the same tube (diameter, wall thickness,
+        tube length), any cross-section, axial grid or far-zone coarsening.
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix
+        ``(n_nodes_to, n_nodes_from)``: ``P @ u.reshape(-1, 3)`` are the target's nodal
+        displacements (mm) of the source's ``u`` (mm); build it once to move many states.
+
+    Raises
+    ------
+    ValueError
+        The two cases describe different tubes, or a target node lies outside the source mesh.
+    """
+    for name in ("diameter_mm", "thickness_mm", "tube_length_mm"):
+        a, b = getattr(spec_from, name), getattr(spec_to, name)
+        if not np.isclose(a, b, rtol=1e-12, atol=0.0):
+            raise ValueError(f"different tubes: {name} {a} (from) vs {b} (to)")
+    return FieldProbe(spec_from).matrix(build_disc(spec_to).X)
+
+
 def transfer_displacement(spec_from, u_from: np.ndarray, spec_to) -> np.ndarray:
     """A 3D displacement field (mm) of one mesh interpolated at the nodes of another.
 
@@ -191,13 +218,8 @@ def transfer_displacement(spec_from, u_from: np.ndarray, spec_to) -> np.ndarray:
     ValueError
         The two cases describe different tubes, or ``u_from`` has the wrong length.
     """
-    for name in ("diameter_mm", "thickness_mm", "tube_length_mm"):
-        a, b = getattr(spec_from, name), getattr(spec_to, name)
-        if not np.isclose(a, b, rtol=1e-12, atol=0.0):
-            raise ValueError(f"different tubes: {name} {a} (from) vs {b} (to)")
-    probe = FieldProbe(spec_from)
+    P = transfer_matrix(spec_from, spec_to)
     u = np.asarray(u_from, dtype=float)
-    if u.shape != (3 * probe.n_nodes,):
-        raise ValueError(f"u_from has {u.size} values; the source mesh has {3 * probe.n_nodes}")
-    P = probe.matrix(build_disc(spec_to).X)
+    if u.shape != (3 * P.shape[1],):
+        raise ValueError(f"u_from has {u.size} values; the source mesh has {3 * P.shape[1]}")
     return np.asarray(P @ u.reshape(-1, 3)).ravel()

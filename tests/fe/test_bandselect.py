@@ -19,7 +19,10 @@ import pytest
 
 from grasprom.fe.bandselect import (
     BAND_ENERGY_RTOL,
+    NOT_LANDED,
+    BandChoice,
     band_gaps,
+    check_companion,
     companion_spec,
     companion_states,
     run_case_3d_selected,
@@ -66,6 +69,7 @@ def test_on_one_branch_every_moved_state_is_the_cases_own(selected):
     assert sel["far_coarsening"] == 2 and sel["newton_iterations"] > 0
     info = selected.info
     assert info["wall_time_s"] == pytest.approx(info["own_wall_time_s"] + sel["wall_time_s"])
+    assert info["solver"]["band_companion"] == 2  # the spec's, not the own run's 0
     json.dumps(sel, allow_nan=False)
 
 
@@ -84,8 +88,21 @@ def test_a_row_of_higher_energy_is_replaced_by_the_moved_state(selected):
     assert [c.taken for c in choices] == [g == gaps[2] for g in gaps]
     true_force = selected.table.loc[k, "force_N"]
     assert out.table.loc[k, "force_N"] == pytest.approx(true_force, rel=1e-4)
+    assert out.info["max_force_N"] == out.table["force_N"].max()
     rest = out.table.index != k
     pd.testing.assert_frame_equal(out.table[rest], selected.table[rest])
+    # a gap without a companion state, and one whose state inverts an element here: both
+    # recorded (NaN -> None in the record), neither taken, the table unchanged
+    states = dict(states)
+    del states[gaps[0]]
+    force, u = states[gaps[1]]
+    states[gaps[1]] = (force, 1e3 * u)
+    out, choices = select_lower(SPEC, selected, comp, states, gaps=gaps)
+    assert choices[0].error == NOT_LANDED and "element" in choices[1].error
+    assert not any(c.taken for c in choices)
+    pd.testing.assert_frame_equal(out.table, selected.table)
+    json.dumps([c.record() for c in choices], allow_nan=False)
+    assert choices[0].record()["moved_force_N"] is None
 
 
 def test_a_stroke_without_band_gaps_records_so():
@@ -113,3 +130,27 @@ def test_companion_spec_checks_its_inputs():
         companion_spec(SPEC, [], 2)
     with pytest.raises(ValueError, match="far_coarsening=3 must divide"):
         companion_spec(SPEC, [21.0], 3)
+
+
+def test_the_companion_ends_in_the_band_without_unloading():
+    spec = replace(SPEC, closed_gap_mm=10.0)
+    spec = replace(spec, solver=replace(spec.solver, unload_from_N=5.0, land_on_gaps_mm=(25.0,)))
+    comp = companion_spec(spec, [22.0, 21.0], 2)
+    assert comp.closed_gap_mm == 21.0 and comp.solver.unload_from_N == 0.0
+    assert comp.solver.land_on_gaps_mm == (25.0, 22.0, 21.0)
+    assert companion_spec(replace(SPEC, closed_gap_mm=21.5), [22.0, 21.0], 2).closed_gap_mm == 21.5
+
+
+def test_a_companion_that_cannot_help_is_refused_before_the_run():
+    zoned = replace(SPEC, mesh=replace(SPEC.mesh, far_coarsening=2))
+    with pytest.raises(ValueError, match="must be another mesh"):
+        run_case_3d_selected(_with_companion(zoned, 2))
+    coulomb = replace(SPEC, contact="coulomb", friction=0.2)
+    with pytest.raises(ValueError, match="not with Coulomb contact"):
+        run_case_3d_selected(_with_companion(coulomb, 2))
+    check_companion(zoned, 1)  # the zoned case's companion on one cross-section is fine
+
+
+def test_a_choice_records_json_ready():
+    c = BandChoice(3.0, 1.0, 2.0, 1.1, float("nan"), float("nan"), 0, False, "no equilibrium")
+    assert json.loads(json.dumps(c.record(), allow_nan=False))["moved_energy_mJ"] is None

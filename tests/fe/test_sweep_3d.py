@@ -228,7 +228,12 @@ def test_3d_sweep_with_coulomb_contact_records_the_coefficient(tmp_path):
         (["--model", "3d", "--far-coarsening", "5"], "--far-coarsening: far_coarsening=5 must"),
         (["--band-companion", "2"], "--band-companion: only with --model 3d"),
         (["--model", "3d", "--band-companion", "-1"], "--band-companion: must be an integer >= 0"),
-        (["--model", "3d", "--band-companion", "5"], "--band-companion: the companion mesh: far"),
+        (["--model", "3d", "--band-companion", "5"], "--band-companion: far_coarsening=5 must"),
+        (["--model", "3d", "--mesh", "zoned", "--band-companion", "2"], "must be another mesh"),
+        (
+            ["--model", "3d", "--contact", "coulomb", "--friction", "0.2", "--band-companion", "2"],
+            "--band-companion: not with Coulomb contact",
+        ),
     ],
 )
 def test_3d_options_that_do_not_fit_are_clear_errors(tmp_path, capsys, extra, needle):
