@@ -13,7 +13,7 @@ them: which state is kept is.
 *companion*: the same case on the mesh with the far zone coarsened by
 ``SolverSettings.band_companion`` (:func:`companion_spec`), landing on the case's band gaps.
 Each companion state is moved to the case's mesh
-(:func:`~grasprom.fe.transfer3d.transfer_displacement`), solved there at its gap
+(:func:`~grasprom.fe.transfer3d.transfer_matrix`, built once a case), solved there at its gap
 (:func:`~grasprom.fe.model3d.equilibrium_from`), and wherever it holds less strain energy than
 the case's own state (by more than :data:`BAND_ENERGY_RTOL`), its row replaces the case's
 (:func:`select_lower`).  Both states are equilibria of the same mesh, so their energies compare

@@ -187,9 +187,13 @@ def _check_axial(opts: Model3DOptions) -> None:
     """``--n-jaw`` >= 1, ``--n-free`` >= 0, ``--far-coarsening`` >= 1 and
     ``--band-companion`` >= 0 (integers); ``--predict-contact-below`` a multiple of the wall
     thickness in (0, 100]."""
-    ints = (("--n-jaw", opts.n_jaw, 1), ("--n-free", opts.n_free, 0))
-    ints += (("--far-coarsening", opts.far_coarsening, 1),)
-    for name, v, least in ints + (("--band-companion", opts.band_companion, 0),):
+    ints = (
+        ("--n-jaw", opts.n_jaw, 1),
+        ("--n-free", opts.n_free, 0),
+        ("--far-coarsening", opts.far_coarsening, 1),
+        ("--band-companion", opts.band_companion, 0),
+    )
+    for name, v, least in ints:
         if v is not None and (isinstance(v, bool) or not isinstance(v, int) or v < least):
             raise SweepInputError(f"{name}: must be an integer >= {least}, got {v!r}")
     m = opts.predict_contact_below_t
