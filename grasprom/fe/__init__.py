@@ -7,7 +7,8 @@ Modules: ``materials`` (constitutive laws), ``model2d`` (the plane-strain clampe
 format) with ``atomicio`` (atomic writes, JSON encoding) and ``provenance`` (versions, git
 revision, time stamps), ``report`` (summary table) and ``plots`` (force-gap figure); ``model3d``
 (the 3D tube, :func:`run_case_3d`; :func:`equilibrium_from` solves one gap from a given
-state), ``transfer3d`` (a 3D field moved to another mesh, :func:`transfer_displacement`),
+state, :class:`EquilibriumSolver` many on one set-up), ``transfer3d`` (a 3D field moved to
+another mesh, :func:`transfer_displacement`),
 ``bandselect`` (the crease band's lower-energy state across the case's run and a companion
 run's, :func:`run_case_3d_selected`) and ``ccx`` (the same case in CalculiX, :func:`run_ccx`).
 
@@ -26,6 +27,7 @@ _LAZY = {
     "run_case_3d": "model3d",
     "equilibrium_from": "model3d",
     "Equilibrium3D": "model3d",
+    "EquilibriumSolver": "model3d",
     "transfer_displacement": "transfer3d",
     "FieldProbe": "transfer3d",
     "run_case_3d_selected": "bandselect",

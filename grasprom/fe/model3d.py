@@ -1706,16 +1706,91 @@ def _contact_at(st: _Setup, u: np.ndarray, h: float) -> _Contact:
     return c
 
 
+class EquilibriumSolver:
+    """Equilibria of one 3D case at given gaps from given start states, on one set-up.
+
+    The mesh, quadrature, material and sparse solver are built once (a few seconds on the
+    sweep's meshes) and serve every :meth:`solve`; PARDISO keeps its symbolic analysis between
+    solves (one sparsity pattern).  :func:`equilibrium_from` is one solve on a fresh set-up.
+
+    Parameters
+    ----------
+    spec : CaseSpec3D
+        The case (its mesh is the one solved on).
+    solver : str
+        Sparse solver, see :func:`run_case_3d`.
+
+    Raises
+    ------
+    ValueError
+        An invalid spec.
+    """
+
+    def __init__(self, spec: CaseSpec3D, solver: str = "auto") -> None:
+        self.spec = spec
+        self._st = _setup(spec, solver)
+
+    @property
+    def ndof(self) -> int:
+        """Degrees of freedom of the case's mesh (``3 n_nodes``)."""
+        return int(self._st.disc.ndof)
+
+    def solve(self, u0: np.ndarray, gap_mm: float) -> Equilibrium3D:
+        """Equilibrium at jaw gap ``gap_mm`` (mm) from the start displacements ``u0`` (mm).
+
+        The contact state is read off ``u0`` (:data:`RESTART_CONTACT_TOL`; with stick contact
+        every node on the jaw is stuck where it is), then Newton with the active set runs at
+        the jaw height ``gap_mm / 2`` (and the proximal relaxation of a snap if that fails).
+        With a state of another mesh (:func:`grasprom.fe.transfer3d.transfer_displacement`)
+        as ``u0``, the result is this mesh's state on the same branch of equilibria, if the
+        branch exists here.
+
+        Parameters
+        ----------
+        u0 : ndarray
+            Start displacements (mm) on the case's mesh, ``3 n_nodes``.
+        gap_mm : float
+            Jaw gap (mm).
+
+        Returns
+        -------
+        Equilibrium3D
+
+        Raises
+        ------
+        ValueError
+            ``u0`` has the wrong length or the gap is not positive.
+        RuntimeError
+            ``u0`` inverts an element (a sharp fold of a finer mesh moved to a coarser one
+            can), or no equilibrium was found from it.
+        """
+        if not (np.isfinite(gap_mm) and gap_mm > 0):
+            raise ValueError(f"invalid gap_mm={gap_mm!r}: a positive jaw gap (mm)")
+        st = self._st
+        u = np.asarray(u0, dtype=float)
+        if u.shape != (st.disc.ndof,):
+            raise ValueError(f"u0 has {u.size} values; the mesh has {st.disc.ndof} dofs")
+        h = 0.5 * float(gap_mm)
+        c = _contact_at(st, u, h)
+        _, K, minJ = assemble(st.disc, st.material, u)
+        if K is None:
+            msg = f"the start state inverts an element of this mesh (min det F = {minJ:.3g})"
+            raise RuntimeError(msg)
+        try:
+            u, f, K, c, it = _advance(st, u, K, c, h, 0.0)  # no jaw step: relaxed on failure
+        except _STEP_ERRORS as exc:
+            msg = f"no equilibrium at gap {gap_mm} mm from the given state: {exc}"
+            raise RuntimeError(msg) from exc
+        row, e = _state_row(self.spec, st, h, u, f, c, it)
+        return Equilibrium3D(2.0 * h, row["force_N"], 8.0 * e, u, it, row)
+
+
 def equilibrium_from(
     spec: CaseSpec3D, u0: np.ndarray, gap_mm: float, solver: str = "auto"
 ) -> Equilibrium3D:
-    """Equilibrium of a 3D case at one jaw gap, from a given start state.
-
-    The contact state is read off ``u0`` (:data:`RESTART_CONTACT_TOL`; with stick contact
-    every node on the jaw is stuck where it is), then Newton with the active set runs at the
-    jaw height ``gap_mm / 2`` (and the proximal relaxation of a snap if that fails).  With a
-    state of another mesh (:func:`grasprom.fe.transfer3d.transfer_displacement`) as ``u0``,
-    the result is this mesh's state on the same branch of equilibria, if the branch exists here.
+    """Equilibrium of a 3D case at one jaw gap, from a given start state:
+    ``EquilibriumSolver(spec, solver).solve(u0, gap_mm)`` (:meth:`EquilibriumSolver.solve`;
+    for several solves on one mesh keep the :class:`EquilibriumSolver`).
 
     Parameters
     ----------
@@ -1737,28 +1812,11 @@ def equilibrium_from(
     ValueError
         ``u0`` has the wrong length or the gap is not positive.
     RuntimeError
-        ``u0`` inverts an element (a sharp fold of a finer mesh moved to a coarser one can), or
-        no equilibrium was found from it.
+        ``u0`` inverts an element or no equilibrium was found from it.
     """
-    if not (np.isfinite(gap_mm) and gap_mm > 0):
+    if not (np.isfinite(gap_mm) and gap_mm > 0):  # before the set-up's seconds
         raise ValueError(f"invalid gap_mm={gap_mm!r}: a positive jaw gap (mm)")
-    st = _setup(spec, solver)
-    u = np.asarray(u0, dtype=float)
-    if u.shape != (st.disc.ndof,):
-        raise ValueError(f"u0 has {u.size} values; the mesh has {st.disc.ndof} dofs")
-    h = 0.5 * float(gap_mm)
-    c = _contact_at(st, u, h)
-    _, K, minJ = assemble(st.disc, st.material, u)
-    if K is None:
-        msg = f"the start state inverts an element of this mesh (min det F = {minJ:.3g})"
-        raise RuntimeError(msg)
-    try:
-        u, f, K, c, it = _advance(st, u, K, c, h, 0.0)  # no jaw step: relaxed if Newton fails
-    except _STEP_ERRORS as exc:
-        msg = f"no equilibrium at gap {gap_mm} mm from the given state: {exc}"
-        raise RuntimeError(msg) from exc
-    row, e = _state_row(spec, st, h, u, f, c, it)
-    return Equilibrium3D(2.0 * h, row["force_N"], 8.0 * e, u, it, row)
+    return EquilibriumSolver(spec, solver).solve(u0, gap_mm)
 
 
 def solver_rules() -> dict:

@@ -12,7 +12,13 @@ import pytest
 
 from grasprom.fe.mesh3d import MeshSpec3D
 from grasprom.fe.model2d import SolverSettings
-from grasprom.fe.model3d import CaseSpec3D, build_disc, equilibrium_from, run_case_3d
+from grasprom.fe.model3d import (
+    CaseSpec3D,
+    EquilibriumSolver,
+    build_disc,
+    equilibrium_from,
+    run_case_3d,
+)
 from grasprom.fe.transfer3d import FieldProbe, transfer_displacement
 
 A = CaseSpec3D(
@@ -109,6 +115,26 @@ def test_another_meshs_frictionless_state_lands_on_this_meshs_equilibrium():
         assert on_b.force_N == pytest.approx(b[gap][0], rel=1e-7)
         assert on_a.force_N == pytest.approx(a[gap][0], rel=1e-7)
         assert abs(a[gap][0] / b[gap][0] - 1.0) > 1e-4
+
+
+def test_one_solver_for_many_moves_equals_a_fresh_set_up_each():
+    """An :class:`EquilibriumSolver` kept over several moves (one set-up, one PARDISO analysis)
+    gives each state as a fresh :func:`equilibrium_from` does (parity, to round-off), and those
+    land on the target mesh's own forward run (frictionless: to 1e-7, the reference)."""
+    sa, a = _states(replace(COARSE_A, contact="frictionless"))
+    sb, b = _states(replace(COARSE_B, contact="frictionless"))
+    kept = EquilibriumSolver(sb)
+    assert kept.ndof == build_disc(sb).ndof
+    for gap in GAPS:
+        u0 = transfer_displacement(sa, a[gap][1], sb)
+        reused, fresh = kept.solve(u0, gap), equilibrium_from(sb, u0, gap)
+        assert reused.force_N == pytest.approx(fresh.force_N, rel=1e-10)
+        assert reused.strain_energy_mJ == pytest.approx(fresh.strain_energy_mJ, rel=1e-10)
+        assert np.abs(reused.u - fresh.u).max() < 1e-9
+        assert reused.newton_iterations == fresh.newton_iterations
+        assert reused.force_N == pytest.approx(b[gap][0], rel=1e-7)
+    with pytest.raises(ValueError, match="gap_mm"):
+        kept.solve(u0, 0.0)
 
 
 def test_equilibrium_from_checks_its_inputs():
