@@ -302,6 +302,15 @@ def _add_mesh3d_options(s: argparse.ArgumentParser) -> None:
         "default 0, off; grasprom.fe.bandselect)",
     )
     s.add_argument(
+        "--select-from",
+        default=None,
+        metavar="DIR",
+        help="3d with --band-companion: take each case's own run from DIR (a sweep of the same "
+        "cases without --band-companion, e.g. fe_data/default) instead of running it again, "
+        "and run only the companion and the selection; writes to --out (another directory) "
+        "what the sweep with --band-companion would (grasprom.fe.reselect)",
+    )
+    s.add_argument(
         "--predict-contact-below",
         type=float,
         default=None,
@@ -584,6 +593,8 @@ def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
             specs = to_2d(specs, opts3d)
         if args.workers is not None and args.workers < 1:
             raise SweepInputError(f"--workers: must be a positive integer, got {args.workers}")
+        if args.select_from is not None:
+            runner = _stored_runner(args, specs, runner)
         check_out_dir(args.out)  # created only once every option is valid
         if not args.quiet:
             print(
@@ -609,6 +620,26 @@ def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
         return 130
     print(summary.format())
     return 0 if summary.ok else 1
+
+
+def _stored_runner(args: argparse.Namespace, specs, runner):
+    """``--select-from``: the runner taking the own runs from that directory, after checking
+    every case is there (SweepInputError otherwise)."""
+    from pathlib import Path
+
+    from grasprom.fe.grid import SweepInputError
+    from grasprom.fe.reselect import StoredOwnRuns, check_own_runs
+
+    src = Path(args.select_from)
+    if not src.is_dir():
+        raise SweepInputError(f"--select-from: {src} is not a directory")
+    if src.resolve() == Path(args.out).resolve():
+        raise SweepInputError(
+            "--select-from: --out must be another directory (its cases will have the "
+            "companion's inputs, the source's do not)"
+        )
+    check_own_runs(specs, src)
+    return runner or StoredOwnRuns(str(src))
 
 
 def _cmd_report(args: argparse.Namespace) -> int:

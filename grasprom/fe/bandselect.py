@@ -31,11 +31,12 @@ from typing import Any
 import numpy as np
 
 from grasprom.fe.model2d import CaseResult
-from grasprom.fe.model3d import CaseSpec3D, equilibrium_from, run_case_3d
+from grasprom.fe.model3d import CaseSpec3D, EquilibriumSolver, run_case_3d
 from grasprom.fe.transfer3d import transfer_matrix
 
 __all__ = [
     "BAND_ENERGY_RTOL",
+    "BAND_MOVE_FORCE_RTOL",
     "BandChoice",
     "BandSelection",
     "NOT_LANDED",
@@ -44,6 +45,7 @@ __all__ = [
     "companion_spec",
     "companion_states",
     "run_case_3d_selected",
+    "select_band",
     "select_lower",
 ]
 
@@ -56,6 +58,15 @@ __all__ = [
 #: past the crease; docs/fe-model.md).  Patterns closer than that stay as each run found them
 #: (mr 1.6 mm, default against zoned: 0.06-0.25 %, the forces within 1.5 %).
 BAND_ENERGY_RTOL = 1e-3
+
+#: No move where the companion's force (on its own mesh) is within this share of the case's:
+#: the row is kept.  A moved state's force follows the companion's (over the 145 moves of
+#: five measured cases, moved - own within 0.8 % of companion - own; docs/fe-model.md), so a
+#: kept row is at most about 1.3 % off the moved state's force, inside the band's 3 %, while
+#: the states that were taken all had the companion 1.2-8.8 % off the case's force.  It
+#: spares the moves of a companion on the case's own branch (most of them, 3-90 Newton
+#: iterations each); 0 moves every state.
+BAND_MOVE_FORCE_RTOL = 5e-3
 
 #: A companion row counts as landed on a requested gap within this distance (mm): a landing
 #: step ends at ``h - (h - h_landing)``, which can differ from the landing height by round-off.
@@ -82,6 +93,9 @@ class BandChoice:
         Whether the moved state replaced the case's row.
     error : str
         Why the move failed ("" if it did not).
+    skipped : bool
+        Not moved: the companion's force is within ``move_rtol`` (:func:`select_lower`,
+        :data:`BAND_MOVE_FORCE_RTOL`) of the case's, and the row is kept.
     """
 
     gap_mm: float
@@ -93,6 +107,7 @@ class BandChoice:
     newton_iterations: int
     taken: bool
     error: str = ""
+    skipped: bool = False
 
     def record(self) -> dict[str, Any]:
         """JSON-ready (NaN -> None) for the case sidecar's ``fe_info.band_selection``."""
@@ -122,6 +137,8 @@ class BandSelection:
         Where the companion run placed its creases (mm).
     choices : tuple of BandChoice
         One per band gap the companion landed on, in decreasing gap.
+    move_force_rtol : float
+        The ``move_rtol`` the choices were made with (:data:`BAND_MOVE_FORCE_RTOL`).
     """
 
     far_coarsening: int
@@ -130,6 +147,7 @@ class BandSelection:
     wall_time_s: float
     crease_gaps_mm: tuple[float, ...]
     choices: tuple[BandChoice, ...]
+    move_force_rtol: float = BAND_MOVE_FORCE_RTOL
 
     @property
     def taken_gaps_mm(self) -> tuple[float, ...]:
@@ -145,6 +163,7 @@ class BandSelection:
             "wall_time_s": self.wall_time_s,
             "crease_gaps_mm": list(self.crease_gaps_mm),
             "energy_rtol": BAND_ENERGY_RTOL,
+            "move_force_rtol": self.move_force_rtol,
             "taken_gaps_mm": list(self.taken_gaps_mm),
             "choices": [c.record() for c in self.choices],
         }
@@ -277,6 +296,7 @@ def select_lower(
     states: dict[float, tuple[float, np.ndarray]],
     solver: str = "auto",
     gaps=None,
+    move_rtol: float = BAND_MOVE_FORCE_RTOL,
 ) -> tuple[CaseResult, tuple[BandChoice, ...]]:
     """Replace the rows of ``result`` by the companion's states where those, solved on
     ``spec``'s mesh, hold less strain energy.
@@ -296,6 +316,9 @@ def select_lower(
         Sparse solver (:func:`~grasprom.fe.model3d.run_case_3d`).
     gaps : sequence of float, optional
         All the band gaps (mm); those without a companion state are recorded as such.
+    move_rtol : float
+        A state whose companion force is within this share of the case's force is not moved
+        (:data:`BAND_MOVE_FORCE_RTOL`; 0: every state is moved).
 
     Returns
     -------
@@ -306,28 +329,31 @@ def select_lower(
     Raises
     ------
     ValueError
-        A gap of ``states`` (or ``gaps``) that is not a row of ``result``.
+        A gap of ``states`` (or ``gaps``) that is not a row of ``result``, or a negative
+        ``move_rtol``.
     """
+    if not (math.isfinite(move_rtol) and move_rtol >= 0):
+        raise ValueError(f"invalid move_rtol={move_rtol!r}: a share >= 0")
     table = result.table.copy()
     tab_gaps = table["gap_mm"].to_numpy(dtype=float)
-    P = transfer_matrix(companion, spec) if states else None
+    mover = _Mover(spec, companion, solver)
     choices = []
     for g in sorted(set(states) | set(gaps or ()), reverse=True):
         i = int(np.argmin(np.abs(tab_gaps - g)))
         if abs(tab_gaps[i] - g) > LANDING_TOL_MM:
             raise ValueError(f"select_lower: no row of the case at gap {g} mm")
-        own = tuple(float(table.iloc[i][c]) for c in ("force_N", "strain_energy_mJ"))
+        own_f, own_e = (float(table.iloc[i][c]) for c in ("force_N", "strain_energy_mJ"))
+        nan = math.nan
         if g not in states:
-            nan = math.nan
-            choices.append(BandChoice(g, *own, nan, nan, nan, 0, False, NOT_LANDED))
+            choices.append(BandChoice(g, own_f, own_e, nan, nan, nan, 0, False, NOT_LANDED))
             continue
-        own_f, own_e = own
         comp_f, u_c = states[g]
+        if abs(comp_f - own_f) <= move_rtol * abs(own_f):
+            choices.append(BandChoice(g, own_f, own_e, comp_f, nan, nan, 0, False, "", True))
+            continue
         try:
-            u0 = np.asarray(P @ np.asarray(u_c).reshape(-1, 3)).ravel()
-            eq = equilibrium_from(spec, u0, float(tab_gaps[i]), solver)
+            eq = mover.solve(u_c, float(tab_gaps[i]))
         except _MOVE_ERRORS as exc:
-            nan = math.nan
             choices.append(BandChoice(g, own_f, own_e, comp_f, nan, nan, 0, False, str(exc)))
             continue
         taken = eq.strain_energy_mJ < own_e - BAND_ENERGY_RTOL * abs(own_e)
@@ -337,6 +363,24 @@ def select_lower(
         choices.append(BandChoice(g, own_f, own_e, comp_f, *moved, taken))
     info = {**result.info, "max_force_N": float(table["force_N"].max())}
     return CaseResult(table=table, status=result.status, info=info), tuple(choices)
+
+
+class _Mover:
+    """Companion states moved to the case's mesh and solved there: the interpolation matrix
+    and the case's :class:`~grasprom.fe.model3d.EquilibriumSolver`, built on the first move."""
+
+    def __init__(self, spec: CaseSpec3D, companion: CaseSpec3D, solver: str) -> None:
+        self.spec, self.companion, self.solver = spec, companion, solver
+        self._P = None
+        self._eq: EquilibriumSolver | None = None
+
+    def solve(self, u_companion: np.ndarray, gap_mm: float):
+        """The case's equilibrium at ``gap_mm`` (mm) from a companion state (mm)."""
+        if self._eq is None:
+            self._P = transfer_matrix(self.companion, self.spec)
+            self._eq = EquilibriumSolver(self.spec, self.solver)
+        u0 = np.asarray(self._P @ np.asarray(u_companion).reshape(-1, 3)).ravel()
+        return self._eq.solve(u0, gap_mm)
 
 
 #: ``BandChoice.error`` of a band gap the companion has no state at.
@@ -383,17 +427,58 @@ def run_case_3d_selected(
     res = run_case_3d(own_spec, progress, solver, on_step)
     if k == 0:
         return res
+    return select_band(spec, res, solver, band)
+
+
+def select_band(
+    spec: CaseSpec3D,
+    result: CaseResult,
+    solver: str = "auto",
+    band: tuple[float, float] | None = None,
+) -> CaseResult:
+    """The companion run and the band's selection for a case already run: the second half of
+    :func:`run_case_3d_selected` (a case of a sweep without the companion, read back from its
+    files, gets the rows it would have had with it).
+
+    Parameters
+    ----------
+    spec : CaseSpec3D
+        The case, ``spec.solver.band_companion`` >= 1.
+    result : CaseResult
+        Its own run: :func:`~grasprom.fe.model3d.run_case_3d` of ``spec`` with
+        ``band_companion`` 0 (table with ``gap_mm``, ``force_N``, ``strain_energy_mJ``;
+        ``info.wall_time_s`` its wall time in s).
+    solver : str
+        Sparse solver (:func:`~grasprom.fe.model3d.run_case_3d`).
+    band : (float, float), optional
+        ``(lowest, highest)`` jaw gap (mm) of the band; default ``(2 t, 4 t)``.
+
+    Returns
+    -------
+    CaseResult
+        As :func:`run_case_3d_selected`.
+
+    Raises
+    ------
+    ValueError
+        ``band_companion`` is 0, or :func:`check_companion` refuses.
+    """
+    k = spec.solver.band_companion
+    if k == 0:
+        raise ValueError("select_band: spec.solver.band_companion is 0 (no companion asked)")
+    check_companion(spec, k)
+    own_spec = replace(spec, solver=replace(spec.solver, band_companion=0))
     t0 = time.perf_counter()
-    gaps = band_gaps(res.table, spec.thickness_mm, band)
+    gaps = band_gaps(result.table, spec.thickness_mm, band)
     if not gaps:
-        return _with_selection(res, BandSelection(k, "no band gaps", 0, 0.0, (), ()), 0.0)
+        return _with_selection(result, BandSelection(k, "no band gaps", 0, 0.0, (), ()), 0.0)
     comp = companion_spec(own_spec, gaps, k)
     try:
         comp_res, states = companion_states(comp, gaps, solver)
     except _MOVE_ERRORS as exc:
         sel = BandSelection(k, f"error: {exc}", 0, 0.0, (), ())
-        return _with_selection(res, sel, time.perf_counter() - t0)
-    out, choices = select_lower(own_spec, res, comp, states, solver, gaps)
+        return _with_selection(result, sel, time.perf_counter() - t0)
+    out, choices = select_lower(own_spec, result, comp, states, solver, gaps)
     newton = comp_res.info["newton_iterations"] + sum(c.newton_iterations for c in choices)
     creases = tuple(float(c["placed_gap_mm"]) for c in comp_res.info.get("creases", ()))
     sel = BandSelection(k, comp_res.status, newton, 0.0, creases, choices)

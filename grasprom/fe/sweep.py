@@ -606,9 +606,11 @@ class _CaseWriter:
         out = self.out
         if outcome.result is not None:
             try:
-                df.write_case(
-                    out, spec, outcome.result, wall_time_s=outcome.wall_time_s, prov=self.prov
-                )
+                # a runner that continued stored work (reselect.StoredOwnRuns) says how long
+                # that took: the case's wall time is both
+                prior = float(outcome.result.info.get("prior_wall_time_s", 0.0))
+                wall = outcome.wall_time_s + prior
+                df.write_case(out, spec, outcome.result, wall_time_s=wall, prov=self.prov)
             except AtomicWriteError as exc:
                 raise SweepWriteError(exc.errno, exc.strerror, exc.filename) from None
             except ValueError as exc:

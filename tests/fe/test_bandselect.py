@@ -17,8 +17,10 @@ from dataclasses import replace
 import pandas as pd
 import pytest
 
+from grasprom.fe import datafiles as df
 from grasprom.fe.bandselect import (
     BAND_ENERGY_RTOL,
+    BAND_MOVE_FORCE_RTOL,
     NOT_LANDED,
     BandChoice,
     band_gaps,
@@ -26,11 +28,14 @@ from grasprom.fe.bandselect import (
     companion_spec,
     companion_states,
     run_case_3d_selected,
+    select_band,
     select_lower,
 )
+from grasprom.fe.grid import SweepInputError
 from grasprom.fe.mesh3d import MeshSpec3D
 from grasprom.fe.model2d import CaseResult, CaseSpec, SolverSettings, run_case
 from grasprom.fe.model3d import CaseSpec3D, run_case_3d
+from grasprom.fe.reselect import StoredOwnRuns, check_own_runs, read_own_run
 
 SPEC = CaseSpec3D(
     "mr",
@@ -103,6 +108,61 @@ def test_a_row_of_higher_energy_is_replaced_by_the_moved_state(selected):
     pd.testing.assert_frame_equal(out.table, selected.table)
     json.dumps([c.record() for c in choices], allow_nan=False)
     assert choices[0].record()["moved_force_N"] is None
+
+
+def test_a_companion_state_as_strong_as_the_cases_is_not_moved(selected):
+    """Where the companion's force is within ``move_rtol`` of the case's the state is not moved
+    (recorded as skipped, no Newton iteration, the row kept); the test's companion is 3-9 %
+    off, so at the default (0.5 %) every state moves, at 10 % none."""
+    gaps = band_gaps(selected.table, SPEC.thickness_mm, BAND)
+    comp = companion_spec(SPEC, gaps, 2)
+    _, states = companion_states(comp, gaps)
+    off = [abs(states[g][0] / c["own_force_N"] - 1.0) for g, c in
+           zip(gaps, selected.info["band_selection"]["choices"])]  # fmt: skip
+    assert min(off) > BAND_MOVE_FORCE_RTOL and max(off) < 0.1
+    assert not any(c["skipped"] for c in selected.info["band_selection"]["choices"])
+    assert selected.info["band_selection"]["move_force_rtol"] == BAND_MOVE_FORCE_RTOL
+    out, choices = select_lower(SPEC, selected, comp, states, move_rtol=0.1)
+    assert all(c.skipped and c.newton_iterations == 0 and not c.taken for c in choices)
+    assert [c.companion_force_N for c in choices] == [states[g][0] for g in gaps]
+    pd.testing.assert_frame_equal(out.table, selected.table)
+    json.dumps([c.record() for c in choices], allow_nan=False)
+    with pytest.raises(ValueError, match="move_rtol"):
+        select_lower(SPEC, selected, comp, states, move_rtol=-0.1)
+
+
+def test_the_selection_of_a_stored_run_is_the_selected_runs(selected, tmp_path):
+    """A case of a sweep without the companion, read back from its files
+    (:class:`StoredOwnRuns`), gets the rows, choices and spec record the run with the companion
+    has (parity of the two paths; the own run round-trips its CSV exactly); its wall time adds
+    the own run's, whose provenance is kept."""
+    plain = run_case_3d(SPEC)
+    df.write_case(tmp_path, SPEC, plain)
+    spec2 = _with_companion(SPEC, 2)
+    check_own_runs([spec2], tmp_path)
+    out = StoredOwnRuns(str(tmp_path), band=BAND)(spec2)
+    pd.testing.assert_frame_equal(out.table, selected.table)
+    mine, theirs = out.info["band_selection"], selected.info["band_selection"]
+    for key in ("choices", "taken_gaps_mm", "crease_gaps_mm", "newton_iterations", "status"):
+        assert mine[key] == theirs[key]
+    meta = df.read_case(tmp_path / "mr_t1.40.json").meta
+    assert out.info["prior_wall_time_s"] == meta["wall_time_s"] == out.info["own_wall_time_s"]
+    assert out.info["own_run"]["source"] == str(tmp_path)
+    assert out.info["own_run"]["git_revision"] == meta["git_revision"]
+    assert out.info["wall_time_s"] > meta["wall_time_s"]
+    with pytest.raises(ValueError, match="band_companion is 0"):
+        select_band(SPEC, plain)
+
+
+def test_a_stored_run_of_other_inputs_is_refused(selected, tmp_path):
+    df.write_case(tmp_path, SPEC, CaseResult(selected.table, "complete", {}))
+    other = replace(_with_companion(SPEC, 2), tube_length_mm=80.0)
+    with pytest.raises(SweepInputError, match="tube_length_mm"):
+        read_own_run(other, tmp_path)
+    with pytest.raises(SweepInputError, match="no case mr_t1.20.json"):
+        read_own_run(replace(other, thickness_mm=1.2), tmp_path)
+    with pytest.raises(SweepInputError, match="--band-companion K >= 1"):
+        check_own_runs([SPEC], tmp_path)
 
 
 def test_a_stroke_without_band_gaps_records_so():

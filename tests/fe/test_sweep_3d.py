@@ -240,3 +240,46 @@ def test_3d_options_that_do_not_fit_are_clear_errors(tmp_path, capsys, extra, ne
     assert _sweep(tmp_path / "bad", *extra) == 2
     err = capsys.readouterr().err
     assert needle in err and "Traceback" not in err
+
+
+def test_the_band_selection_of_a_stored_sweep_is_the_companion_sweeps(tmp_path):
+    """``--band-companion 2 --select-from A`` writes the cases ``--band-companion 2`` writes
+    (same input hash and rows; this stroke ends above the band, so the parity is of the files
+    and records, the band's own parity is in tests/fe/test_bandselect.py), with the own run's
+    wall time and provenance."""
+    two = ["--n-layers", "2"]
+    own = _sweep_3d_meta(tmp_path / "own", *two)
+    direct = _sweep_3d_meta(tmp_path / "direct", *two, "--band-companion", "2")
+    src = str(tmp_path / "own")
+    meta = _sweep_3d_meta(tmp_path / "sel", *two, "--band-companion", "2", "--select-from", src)
+    assert meta["input_hash"] == direct["input_hash"] != own["input_hash"]
+    assert meta["csv_sha256"] == own["csv_sha256"]  # nothing in the band: the own rows
+    info = meta["fe_info"]
+    assert info["band_selection"]["status"] == direct["fe_info"]["band_selection"]["status"]
+    assert info["own_run"]["source"] == src and info["own_wall_time_s"] == own["wall_time_s"]
+    assert meta["wall_time_s"] >= own["wall_time_s"]
+
+
+@pytest.mark.parametrize(
+    "extra, needle",
+    [
+        (["--select-from", "{own}"], "--select-from: needs --model 3d and --band-companion"),
+        (["--band-companion", "2", "--select-from", "{missing}"], "is not a directory"),
+        (["--band-companion", "2", "--select-from", "{out}"], "--out must be another directory"),
+        (["--band-companion", "2", "--select-from", "{empty}"], "no case mr_t1.40.json"),
+        (["--band-companion", "2", "--tube-length", "40", "--select-from", "{own}"],
+         "tube_length_mm"),
+    ],
+)  # fmt: skip
+def test_select_from_errors_are_clear(tmp_path, capsys, extra, needle):
+    own, out = tmp_path / "own", tmp_path / "out"
+    assert _sweep(own, "--model", "3d", *COARSE, "--n-layers", "2") == 0
+    (tmp_path / "empty").mkdir()
+    out.mkdir()
+    paths = {"own": own, "out": out, "missing": tmp_path / "nope", "empty": tmp_path / "empty"}
+    extra = [a.format(**paths) for a in extra]
+    capsys.readouterr()
+    assert _sweep(out, "--model", "3d", *COARSE, "--n-layers", "2", *extra) == 2
+    err = capsys.readouterr().err
+    assert needle in err and "Traceback" not in err
+    assert not list(out.iterdir())  # nothing written
