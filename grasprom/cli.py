@@ -594,7 +594,7 @@ def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
         if args.workers is not None and args.workers < 1:
             raise SweepInputError(f"--workers: must be a positive integer, got {args.workers}")
         if args.select_from is not None:
-            runner = _stored_runner(args, specs, runner)
+            runner = _stored_runner(args, specs)
         check_out_dir(args.out)  # created only once every option is valid
         if not args.quiet:
             print(
@@ -622,11 +622,9 @@ def _cmd_sweep(args: argparse.Namespace, runner=None) -> int:
     return 0 if summary.ok else 1
 
 
-def _stored_runner(args: argparse.Namespace, specs, runner):
+def _stored_runner(args: argparse.Namespace, specs):
     """``--select-from``: the runner taking the own runs from that directory, after checking
     every case is there (SweepInputError otherwise)."""
-    from pathlib import Path
-
     from grasprom.fe.grid import SweepInputError
     from grasprom.fe.reselect import StoredOwnRuns, check_own_runs
 
@@ -639,7 +637,7 @@ def _stored_runner(args: argparse.Namespace, specs, runner):
             "companion's inputs, the source's do not)"
         )
     check_own_runs(specs, src)
-    return runner or StoredOwnRuns(str(src))
+    return StoredOwnRuns(str(src.resolve()))  # absolute: workers may run elsewhere
 
 
 def _cmd_report(args: argparse.Namespace) -> int:

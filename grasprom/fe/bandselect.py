@@ -14,9 +14,12 @@ them: which state is kept is.
 ``SolverSettings.band_companion`` (:func:`companion_spec`), landing on the case's band gaps.
 Each companion state is moved to the case's mesh
 (:func:`~grasprom.fe.transfer3d.transfer_matrix`, built once a case), solved there at its gap
-(:func:`~grasprom.fe.model3d.equilibrium_from`), and wherever it holds less strain energy than
-the case's own state (by more than :data:`BAND_ENERGY_RTOL`), its row replaces the case's
-(:func:`select_lower`).  Both states are equilibria of the same mesh, so their energies compare
+(one :class:`~grasprom.fe.model3d.EquilibriumSolver` a case), and wherever it holds less strain
+energy than the case's own state (by more than :data:`BAND_ENERGY_RTOL`), its row replaces the
+case's (:func:`select_lower`); a state whose companion force is within
+:data:`BAND_MOVE_FORCE_RTOL` of the case's is not moved.  :func:`select_band` does the
+companion's part for a case already run (a stored sweep: :mod:`grasprom.fe.reselect`).
+Both states are equilibria of the same mesh, so their energies compare
 exactly; the two meshes share the jaw zone (the far zone only is coarser), so the stuck contact
 nodes move over unchanged.  Gaps in mm, forces in N, energies in mJ.
 """
@@ -61,11 +64,11 @@ BAND_ENERGY_RTOL = 1e-3
 
 #: No move where the companion's force (on its own mesh) is within this share of the case's:
 #: the row is kept.  A moved state's force follows the companion's (over the 145 moves of
-#: five measured cases, moved - own within 0.8 % of companion - own; docs/fe-model.md), so a
-#: kept row is at most about 1.3 % off the moved state's force, inside the band's 3 %, while
-#: the states that were taken all had the companion 1.2-8.8 % off the case's force.  It
-#: spares the moves of a companion on the case's own branch (most of them, 3-90 Newton
-#: iterations each); 0 moves every state.
+#: five measured cases, moved - own within 0.8 % of companion - own; docs/fe-model.md, *The
+#: band's lower state across two starts*), so a kept row is at most about 1.3 % off the moved
+#: state's force, inside the band's 3 %, while the states that were taken all had the
+#: companion 1.2-8.8 % off the case's force.  It spares the moves of a companion on the
+#: case's own branch (61 of those 145, 3-68 Newton iterations each); 0 moves every state.
 BAND_MOVE_FORCE_RTOL = 5e-3
 
 #: A companion row counts as landed on a requested gap within this distance (mm): a landing
@@ -348,7 +351,7 @@ def select_lower(
             choices.append(BandChoice(g, own_f, own_e, nan, nan, nan, 0, False, NOT_LANDED))
             continue
         comp_f, u_c = states[g]
-        if abs(comp_f - own_f) <= move_rtol * abs(own_f):
+        if move_rtol > 0 and abs(comp_f - own_f) <= move_rtol * abs(own_f):
             choices.append(BandChoice(g, own_f, own_e, comp_f, nan, nan, 0, False, "", True))
             continue
         try:
@@ -435,6 +438,7 @@ def select_band(
     result: CaseResult,
     solver: str = "auto",
     band: tuple[float, float] | None = None,
+    move_rtol: float = BAND_MOVE_FORCE_RTOL,
 ) -> CaseResult:
     """The companion run and the band's selection for a case already run: the second half of
     :func:`run_case_3d_selected` (a case of a sweep without the companion, read back from its
@@ -452,6 +456,8 @@ def select_band(
         Sparse solver (:func:`~grasprom.fe.model3d.run_case_3d`).
     band : (float, float), optional
         ``(lowest, highest)`` jaw gap (mm) of the band; default ``(2 t, 4 t)``.
+    move_rtol : float
+        :func:`select_lower`'s (recorded as ``band_selection.move_force_rtol``).
 
     Returns
     -------
@@ -471,17 +477,18 @@ def select_band(
     t0 = time.perf_counter()
     gaps = band_gaps(result.table, spec.thickness_mm, band)
     if not gaps:
-        return _with_selection(result, BandSelection(k, "no band gaps", 0, 0.0, (), ()), 0.0)
+        sel = BandSelection(k, "no band gaps", 0, 0.0, (), (), move_rtol)
+        return _with_selection(result, sel, 0.0)
     comp = companion_spec(own_spec, gaps, k)
     try:
         comp_res, states = companion_states(comp, gaps, solver)
     except _MOVE_ERRORS as exc:
-        sel = BandSelection(k, f"error: {exc}", 0, 0.0, (), ())
+        sel = BandSelection(k, f"error: {exc}", 0, 0.0, (), (), move_rtol)
         return _with_selection(result, sel, time.perf_counter() - t0)
-    out, choices = select_lower(own_spec, result, comp, states, solver, gaps)
+    out, choices = select_lower(own_spec, result, comp, states, solver, gaps, move_rtol)
     newton = comp_res.info["newton_iterations"] + sum(c.newton_iterations for c in choices)
     creases = tuple(float(c["placed_gap_mm"]) for c in comp_res.info.get("creases", ()))
-    sel = BandSelection(k, comp_res.status, newton, 0.0, creases, choices)
+    sel = BandSelection(k, comp_res.status, newton, 0.0, creases, choices, move_rtol)
     return _with_selection(out, sel, time.perf_counter() - t0)
 
 

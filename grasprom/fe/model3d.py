@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 import pandas as pd
@@ -1709,9 +1709,10 @@ def _contact_at(st: _Setup, u: np.ndarray, h: float) -> _Contact:
 class EquilibriumSolver:
     """Equilibria of one 3D case at given gaps from given start states, on one set-up.
 
-    The mesh, quadrature, material and sparse solver are built once (a few seconds on the
-    sweep's meshes) and serve every :meth:`solve`; PARDISO keeps its symbolic analysis between
-    solves (one sparsity pattern).  :func:`equilibrium_from` is one solve on a fresh set-up.
+    The mesh, quadrature and material are built once (a few seconds on the sweep's meshes) and
+    serve every :meth:`solve`; each solve gets a new sparse solver (PARDISO's analysis scales
+    and matches by the first matrix's values), so a solve does not depend on the ones before
+    it and equals :func:`equilibrium_from`, one solve on a fresh set-up, to the bit.
 
     Parameters
     ----------
@@ -1728,6 +1729,7 @@ class EquilibriumSolver:
 
     def __init__(self, spec: CaseSpec3D, solver: str = "auto") -> None:
         self.spec = spec
+        self._solver = solver
         self._st = _setup(spec, solver)
 
     @property
@@ -1766,7 +1768,7 @@ class EquilibriumSolver:
         """
         if not (np.isfinite(gap_mm) and gap_mm > 0):
             raise ValueError(f"invalid gap_mm={gap_mm!r}: a positive jaw gap (mm)")
-        st = self._st
+        st = replace(self._st, solver=_make_solver(self._solver), factor=_FactorMemo())
         u = np.asarray(u0, dtype=float)
         if u.shape != (st.disc.ndof,):
             raise ValueError(f"u0 has {u.size} values; the mesh has {st.disc.ndof} dofs")

@@ -11,6 +11,10 @@ wall time added to the selection's and its provenance kept in ``fe_info.own_run`
 
 The own run is taken only if its sidecar's input hash is that of the case with
 ``band_companion`` 0 (:func:`own_run_spec`): same material, geometry, mesh and solver settings.
+Its rows are the stored ones, whatever revision of the code computed them (``fe_info.own_run``
+records it): they equal a fresh run's when that revision's solution path is the current one
+(``fe_info.solver_rules``, absent from sidecars written before it).  The selection itself
+compares equilibria of one mesh and one set of equations, which holds for any such rows.
 """
 
 from __future__ import annotations
@@ -24,6 +28,7 @@ from grasprom.fe.bandselect import select_band
 from grasprom.fe.grid import SweepInputError
 from grasprom.fe.model2d import CaseResult
 from grasprom.fe.model3d import CaseSpec3D
+from grasprom.fe.sweep import PRIOR_WALL_TIME_KEY
 
 __all__ = ["StoredOwnRuns", "check_own_runs", "own_run_spec", "read_own_run"]
 
@@ -76,18 +81,32 @@ def read_own_run(spec: CaseSpec3D, source: str | os.PathLike[str]) -> df.LoadedC
 def check_own_runs(specs, source: str | os.PathLike[str]) -> None:
     """:func:`read_own_run` of every case, before anything runs.
 
+    Parameters
+    ----------
+    specs : sequence of CaseSpec3D
+        The sweep's cases, each with ``solver.band_companion`` >= 1.
+    source : str or os.PathLike
+        The sweep directory of their own runs.
+
     Raises
     ------
     SweepInputError
-        A 2D case or one without a companion, or the first case :func:`read_own_run` refuses.
+        A 2D case or one without a companion; or every case :func:`read_own_run` refuses,
+        one line each.
     """
+    problems = []
     for spec in specs:
         if not isinstance(spec, CaseSpec3D) or spec.solver.band_companion < 1:
             raise SweepInputError(
                 "--select-from: needs --model 3d and --band-companion K >= 1 (it adds the "
                 "companion's selection to stored runs)"
             )
-        read_own_run(spec, source)
+        try:
+            read_own_run(spec, source)
+        except SweepInputError as exc:
+            problems.append(str(exc))
+    if problems:
+        raise SweepInputError("\n".join(problems))
 
 
 @dataclass(frozen=True)
@@ -111,15 +130,35 @@ class StoredOwnRuns:
     band: tuple[float, float] | None = None
 
     def __call__(self, spec: CaseSpec3D) -> CaseResult:
-        """The case with the band's selection; ``info.prior_wall_time_s`` is the own run's
-        wall time (s), which the sweep adds to this call's."""
+        """The case with the band's selection.
+
+        Parameters
+        ----------
+        spec : CaseSpec3D
+            The case, ``solver.band_companion`` >= 1.
+
+        Returns
+        -------
+        CaseResult
+            As :func:`grasprom.fe.bandselect.select_band` of the stored own run (its
+            ``fe_info``, with ``own_wall_time_s`` its ``fe_info.wall_time_s``), with
+            ``own_run`` (``source`` and :data:`OWN_RUN_KEYS` of its sidecar) and
+            :data:`grasprom.fe.sweep.PRIOR_WALL_TIME_KEY`, the own run's wall time (s), which
+            the sweep adds to this call's.
+
+        Raises
+        ------
+        SweepInputError, grasprom.fe.CorruptCaseError
+            As :func:`read_own_run`.
+        """
         case = read_own_run(spec, self.source)
         meta = case.meta
         info: dict[str, Any] = dict(meta.get("fe_info") or {})
-        info["wall_time_s"] = float(meta.get("wall_time_s") or info.get("wall_time_s") or 0.0)
+        outer = float(meta.get("wall_time_s") or 0.0)
+        info["wall_time_s"] = float(info.get("wall_time_s") or outer)
         own = CaseResult(table=case.table, status=str(meta["status"]), info=info)
         out = select_band(spec, own, self.solver, self.band)
         kept = {k: meta.get(k) for k in OWN_RUN_KEYS}
         record = {**out.info, "own_run": {"source": str(self.source), **kept}}
-        record["prior_wall_time_s"] = info["wall_time_s"]
+        record[PRIOR_WALL_TIME_KEY] = outer
         return CaseResult(table=out.table, status=out.status, info=record)

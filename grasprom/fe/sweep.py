@@ -25,6 +25,7 @@ import concurrent.futures as cf
 import contextlib
 import dataclasses
 import json
+import math
 import multiprocessing
 import os
 import signal
@@ -463,7 +464,9 @@ def run_sweep(
         Show a tqdm progress bar (cases done / total, ETA) on stderr.
     runner : callable, keyword-only
         ``runner(spec) -> CaseResult``; default :func:`default_runner` (the real FE model).
-        Must be a module-level function (picklable) unless ``workers=1``.
+        Must pickle (a module-level function or an instance of a module-level class) unless
+        ``workers=1``.  A result's ``info[PRIOR_WALL_TIME_KEY]`` (s) is added to the case's
+        wall time (:func:`split_prior_time`).
     scheduler_timeout_s : float, keyword-only
         Time in s to wait for the Dask scheduler connection.
     lock_timeout_s : float, keyword-only, optional
@@ -606,11 +609,9 @@ class _CaseWriter:
         out = self.out
         if outcome.result is not None:
             try:
-                # a runner that continued stored work (reselect.StoredOwnRuns) says how long
-                # that took: the case's wall time is both
-                prior = float(outcome.result.info.get("prior_wall_time_s", 0.0))
+                result, prior = split_prior_time(outcome.result)
                 wall = outcome.wall_time_s + prior
-                df.write_case(out, spec, outcome.result, wall_time_s=wall, prov=self.prov)
+                df.write_case(out, spec, result, wall_time_s=wall, prov=self.prov)
             except AtomicWriteError as exc:
                 raise SweepWriteError(exc.errno, exc.strerror, exc.filename) from None
             except ValueError as exc:
@@ -633,6 +634,31 @@ class _CaseWriter:
         except AtomicWriteError as exc:
             raise SweepWriteError(exc.errno, exc.strerror, exc.filename) from None
         self.failed.append((stem, msg))
+
+
+#: ``CaseResult.info`` key of a runner that continued earlier work (e.g.
+#: :class:`grasprom.fe.reselect.StoredOwnRuns`): the seconds that work took, added to the
+#: runner's own in the case's ``wall_time_s``; not written to the sidecar.
+PRIOR_WALL_TIME_KEY = "prior_wall_time_s"
+
+
+def split_prior_time(result: CaseResult) -> tuple[CaseResult, float]:
+    """``result`` without :data:`PRIOR_WALL_TIME_KEY`, and its value (s; 0 if absent).
+
+    Raises
+    ------
+    ValueError
+        The value is not a finite number >= 0.
+    """
+    info = dict(result.info or {})
+    raw = info.pop(PRIOR_WALL_TIME_KEY, 0.0)
+    try:
+        prior = float(raw)
+    except (TypeError, ValueError):
+        prior = math.nan
+    if not (math.isfinite(prior) and prior >= 0):
+        raise ValueError(f"{PRIOR_WALL_TIME_KEY}={raw!r}: must be seconds >= 0")
+    return CaseResult(table=result.table, status=result.status, info=info), prior
 
 
 def _dispatch(workers, scheduler, runner, specs, todo, handle, bar, timeout_s) -> None:

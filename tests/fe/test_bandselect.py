@@ -36,6 +36,7 @@ from grasprom.fe.mesh3d import MeshSpec3D
 from grasprom.fe.model2d import CaseResult, CaseSpec, SolverSettings, run_case
 from grasprom.fe.model3d import CaseSpec3D, run_case_3d
 from grasprom.fe.reselect import StoredOwnRuns, check_own_runs, read_own_run
+from grasprom.fe.sweep import PRIOR_WALL_TIME_KEY, split_prior_time
 
 SPEC = CaseSpec3D(
     "mr",
@@ -127,6 +128,16 @@ def test_a_companion_state_as_strong_as_the_cases_is_not_moved(selected):
     assert [c.companion_force_N for c in choices] == [states[g][0] for g in gaps]
     pd.testing.assert_frame_equal(out.table, selected.table)
     json.dumps([c.record() for c in choices], allow_nan=False)
+    # between the smallest and the largest offset: those within are kept, the others moved
+    # as before (to the bit: each solve is independent of the ones before it)
+    rtol = 0.5 * (min(off) + max(off))
+    _, mixed = select_lower(SPEC, selected, comp, states, move_rtol=rtol)
+    assert [c.skipped for c in mixed] == [x <= rtol for x in off]
+    assert 0 < sum(c.skipped for c in mixed) < len(mixed)
+    for c, ref in zip(mixed, selected.info["band_selection"]["choices"]):
+        if not c.skipped:
+            assert c.moved_force_N == ref["moved_force_N"]
+            assert c.newton_iterations == ref["newton_iterations"] > 0
     with pytest.raises(ValueError, match="move_rtol"):
         select_lower(SPEC, selected, comp, states, move_rtol=-0.1)
 
@@ -141,17 +152,35 @@ def test_the_selection_of_a_stored_run_is_the_selected_runs(selected, tmp_path):
     spec2 = _with_companion(SPEC, 2)
     check_own_runs([spec2], tmp_path)
     out = StoredOwnRuns(str(tmp_path), band=BAND)(spec2)
-    pd.testing.assert_frame_equal(out.table, selected.table)
+    pd.testing.assert_frame_equal(out.table, selected.table, check_exact=True)
     mine, theirs = out.info["band_selection"], selected.info["band_selection"]
     for key in ("choices", "taken_gaps_mm", "crease_gaps_mm", "newton_iterations", "status"):
         assert mine[key] == theirs[key]
     meta = df.read_case(tmp_path / "mr_t1.40.json").meta
-    assert out.info["prior_wall_time_s"] == meta["wall_time_s"] == out.info["own_wall_time_s"]
+    assert out.info[PRIOR_WALL_TIME_KEY] == meta["wall_time_s"]
+    assert out.info["own_wall_time_s"] == meta["fe_info"]["wall_time_s"]
     assert out.info["own_run"]["source"] == str(tmp_path)
     assert out.info["own_run"]["git_revision"] == meta["git_revision"]
-    assert out.info["wall_time_s"] > meta["wall_time_s"]
+    assert out.info["wall_time_s"] > out.info["own_wall_time_s"]
     with pytest.raises(ValueError, match="band_companion is 0"):
         select_band(SPEC, plain)
+
+
+def test_a_stored_row_of_higher_energy_is_replaced_as_in_a_run(selected, tmp_path):
+    """A stored own run whose row holds 1 % too much energy gets the moved state there, as
+    :func:`select_lower` gives it on the same table (to the bit), the rest kept."""
+    gaps = band_gaps(selected.table, SPEC.thickness_mm, BAND)
+    table = selected.table.copy()
+    k = table.index[table["gap_mm"] == gaps[1]][0]
+    table.loc[k, "strain_energy_mJ"] *= 1.01
+    df.write_case(tmp_path, SPEC, CaseResult(table, "complete", {"wall_time_s": 1.0}))
+    out = StoredOwnRuns(str(tmp_path), band=BAND)(_with_companion(SPEC, 2))
+    assert out.info["band_selection"]["taken_gaps_mm"] == [gaps[1]]
+    comp = companion_spec(SPEC, gaps, 2)
+    _, states = companion_states(comp, gaps)
+    ref, _ = select_lower(SPEC, CaseResult(table, "complete", {}), comp, states, gaps=gaps)
+    pd.testing.assert_frame_equal(out.table, ref.table, check_exact=True)
+    assert out.table.loc[k, "force_N"] == pytest.approx(selected.table.loc[k, "force_N"], 1e-4)
 
 
 def test_a_stored_run_of_other_inputs_is_refused(selected, tmp_path):
@@ -163,6 +192,16 @@ def test_a_stored_run_of_other_inputs_is_refused(selected, tmp_path):
         read_own_run(replace(other, thickness_mm=1.2), tmp_path)
     with pytest.raises(SweepInputError, match="--band-companion K >= 1"):
         check_own_runs([SPEC], tmp_path)
+
+
+@pytest.mark.parametrize("bad", [-1.0, float("nan"), "soon", None])
+def test_a_prior_wall_time_is_split_off_and_checked(bad):
+    res = CaseResult(pd.DataFrame(), "complete", {PRIOR_WALL_TIME_KEY: 12.5, "x": 1})
+    out, prior = split_prior_time(res)
+    assert prior == 12.5 and out.info == {"x": 1}
+    assert split_prior_time(CaseResult(pd.DataFrame(), "complete", {}))[1] == 0.0
+    with pytest.raises(ValueError, match=PRIOR_WALL_TIME_KEY):
+        split_prior_time(CaseResult(pd.DataFrame(), "complete", {PRIOR_WALL_TIME_KEY: bad}))
 
 
 def test_a_stroke_without_band_gaps_records_so():
