@@ -29,6 +29,7 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py commonbranch  # band states moved between the meshes (~1.5 h)
     python benchmarks/bench_fe3d.py crossmesh     # le 1.0: default vs zoned, band states swapped
     python benchmarks/bench_fe3d.py bandselect    # le 1.0: 4 x 36 vs 4 x 48, each with a companion
+    python benchmarks/bench_fe3d.py moves         # zoned states moved to 4 x 36: one set-up or each
     python benchmarks/bench_fe3d.py stall         # 4 x 36: budgeted solves stop when rising
     python benchmarks/bench_fe3d.py factors       # 4 x 36 sweep case: where factorisations go
     python benchmarks/bench_fe3d.py factors --far-coarsening 2   # the same, 2 x 18 beyond the jaw
@@ -1378,6 +1379,51 @@ def bench_bandselect(
     return out
 
 
+#: gaps (mm) of the moves benchmark: bending, where the two meshes' runs are one branch
+MOVE_GAPS = (26.0, 24.0, 22.0, 20.0, 18.0, 16.0)
+
+
+def bench_moves(closed_gap: float = 16.0) -> dict:
+    """The band selection's moves on the sweep's mesh (4 x 36, 240 mm; mr 1.4): the zoned
+    companion's states at ``MOVE_GAPS`` moved to it and solved at their gaps, with one
+    ``EquilibriumSolver`` kept over the moves against ``equilibrium_from``'s fresh set-up each
+    (the baseline: the selection before), after one untimed warm-up solve (~5 min)."""
+    from grasprom.fe.model3d import EquilibriumSolver, equilibrium_from
+    from grasprom.fe.transfer3d import transfer_matrix
+
+    spec = _sweep_case("mr", 1.4)
+    comp = _sweep_case("mr", 1.4, mesh="zoned")
+    comp = replace(comp, closed_gap_mm=closed_gap, solver=replace(comp.solver,
+                   land_on_gaps_mm=MOVE_GAPS))  # fmt: skip
+    states: dict = {}
+
+    def keep(disc, u, gap, force):
+        if any(abs(gap - g) < 1e-9 for g in MOVE_GAPS):
+            states[round(gap, 6)] = u.copy()
+
+    t0 = time.perf_counter()
+    run_case_3d(comp, on_row=keep)
+    P = transfer_matrix(comp, spec)
+    moves = [(np.asarray(P @ states[g].reshape(-1, 3)).ravel(), g) for g in MOVE_GAPS]
+    print(f"  zoned companion to {closed_gap} mm: {time.perf_counter() - t0:.0f} s", flush=True)
+    equilibrium_from(spec, *moves[0])  # warm-up: caches, the PARDISO library
+    out: dict = {"moves": len(moves)}
+    t0 = time.perf_counter()
+    fresh = [equilibrium_from(spec, u, g) for u, g in moves]
+    out["fresh_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    kept = EquilibriumSolver(spec)
+    reused = [kept.solve(u, g) for u, g in moves]
+    out["kept_s"] = time.perf_counter() - t0
+    out["newton"] = [e.newton_iterations for e in reused]
+    out["bitwise_equal"] = all(np.array_equal(a.u, b.u) for a, b in zip(reused, fresh))
+    print(f"  {len(moves)} moves, Newton {out['newton']}: fresh set-up each (baseline) "
+          f"{out['fresh_s']:.1f} s, one kept solver {out['kept_s']:.1f} s -> "
+          f"{out['fresh_s'] / out['kept_s']:.2f}x; states equal to the bit: "
+          f"{out['bitwise_equal']}", flush=True)  # fmt: skip
+    return out
+
+
 #: gaps of the zoned mesh's comparison: bending, the crease band, the walls meeting, compaction
 ZONE_GAPS = (25.0, 20.0, 15.0, 10.0, 8.0, 6.0, 5.0, 4.5, 4.0, 3.5, 3.0, 2.9, 2.8, 2.7, 2.6, 2.5)
 
@@ -1483,6 +1529,7 @@ SECTIONS = {
     "commonbranch": bench_commonbranch,
     "crossmesh": bench_crossmesh,
     "bandselect": bench_bandselect,
+    "moves": bench_moves,
     "stall": bench_stall,
     "forwardstall": bench_forward_stall,
     "factorreuse": bench_factor_reuse,
