@@ -652,6 +652,8 @@ def _cmd_report(args: argparse.Namespace) -> int:
     print(f"\nwrote {files.table_csv} and {files.plot_png}")
     if files.section_pngs:
         print(f"wrote {len(files.section_pngs)} deformed-section figures (sections_*.png)")
+    if files.band_png is not None:
+        print(f"wrote {files.band_png} (the crease band's companion selection)")
     return 0
 
 

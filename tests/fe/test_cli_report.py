@@ -168,3 +168,31 @@ def test_cli_report(sweep_dir, tmp_path, capsys):
 def test_python_dash_m_help(python, subprocess_env):
     p = _cli(python, subprocess_env, "sweep", "--help")
     assert p.returncode == 0 and "--thickness" in p.stdout and "default 30" in p.stdout
+
+
+def _runner_with_a_selection(spec):
+    """A fake case whose last three rows got a companion selection: two taken, one kept."""
+    res = fr.fake_result(spec)
+    band = res.table.iloc[-3:]
+    gaps = band.gap_mm.tolist()
+    choices = [
+        {"gap_mm": g, "own_force_N": 2.0 * f, "companion_force_N": f, "taken": k < 2}
+        for k, (g, f) in enumerate(zip(gaps, band.force_N))
+    ]
+    sel = {"taken_gaps_mm": gaps[:2], "choices": choices}
+    return type(res)(res.table, res.status, {**res.info, "band_selection": sel})
+
+
+def test_the_report_shows_the_band_selection(tmp_path):
+    """A sweep with the companion selection: ``band_rows_taken`` counts the replaced rows and
+    ``band_selection.png`` is drawn; a sweep without one has NaN there and no figure."""
+    sel, plain = tmp_path / "sel", tmp_path / "plain"
+    grid = build_grid("1.0:1.2:0.2", "mr,le")
+    run_sweep(grid, sel, workers=1, progress=False, runner=_runner_with_a_selection)
+    run_sweep(grid, plain, workers=1, progress=False, runner=fr.fast_runner)
+    files = make_report(sel, tmp_path / "rep")
+    assert list(pd.read_csv(files.table_csv)["band_rows_taken"]) == [2, 2, 2, 2]
+    assert files.band_png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    files = make_report(plain, tmp_path / "rep_plain")
+    assert files.band_png is None and not (tmp_path / "rep_plain" / "band_selection.png").exists()
+    assert pd.read_csv(files.table_csv)["band_rows_taken"].isna().all()
