@@ -1369,11 +1369,13 @@ def bench_bandselect(
         d = np.abs(other[kind] / ref[kind] - 1.0)
         k = int(np.argmax(d))
         stats = {"max": float(d.max()), "at_gap_mm": float(grid[k])}
-        stats |= {"median": float(np.median(d)), "beyond_3pct": float((d > 0.03).mean())}
+        stats |= {"median": float(np.median(d)), "mean": float(d.mean())}
+        stats["beyond_3pct"] = float((d > 0.03).mean())
         out[kind + "_apart"] = stats
         print(f"  {list(out)[1]} vs {list(out)[0]}, {kind} rows: max {stats['max']:.1%} at gap "
-              f"{stats['at_gap_mm']:.2f} mm, median {stats['median']:.2%}, beyond 3 %: "
-              f"{stats['beyond_3pct']:.0%}", flush=True)  # fmt: skip
+              f"{stats['at_gap_mm']:.2f} mm, median {stats['median']:.2%}, mean "
+              f"{stats['mean']:.2%}, beyond 3 %: {stats['beyond_3pct']:.0%}",
+              flush=True)  # fmt: skip
     for v in (ref, other):
         v["own"], v["selected"] = v["own"].tolist(), v["selected"].tolist()
     return out
