@@ -1808,13 +1808,8 @@ def equilibrium_from(
     Returns
     -------
     Equilibrium3D
-
-    Raises
-    ------
-    ValueError
-        ``u0`` has the wrong length or the gap is not positive.
-    RuntimeError
-        ``u0`` inverts an element or no equilibrium was found from it.
+        As :meth:`EquilibriumSolver.solve`, which also lists what it raises (ValueError for
+        bad input, RuntimeError where no equilibrium is found).
     """
     if not (np.isfinite(gap_mm) and gap_mm > 0):  # before the set-up's seconds
         raise ValueError(f"invalid gap_mm={gap_mm!r}: a positive jaw gap (mm)")
