@@ -298,7 +298,7 @@ def _add_mesh3d_options(s: argparse.ArgumentParser) -> None:
         help="3d: after each case a companion run on its mesh with --far-coarsening K lands on "
         "the case's crease-band gaps (2t-4t); where its state, moved to the case's mesh, holds "
         "less strain energy it replaces the case's row (two runs can reach different crease "
-        "patterns; this keeps the lower one; 2 with the default mesh: about 1.4-2.4x the time; "
+        "patterns; this keeps the lower one; 2 with the default mesh: about 1.4-2.5x the time; "
         "default 0, off; grasprom.fe.bandselect)",
     )
     s.add_argument(
