@@ -47,6 +47,7 @@ __all__ = [
     "check_companion",
     "companion_spec",
     "companion_states",
+    "own_run_spec",
     "run_case_3d_selected",
     "select_band",
     "select_lower",
@@ -386,6 +387,11 @@ class _Mover:
         return self._eq.solve(u0, gap_mm)
 
 
+def own_run_spec(spec: CaseSpec3D) -> CaseSpec3D:
+    """``spec`` without the companion (``solver.band_companion`` 0): the case's own run."""
+    return replace(spec, solver=replace(spec.solver, band_companion=0))
+
+
 #: ``BandChoice.error`` of a band gap the companion has no state at.
 NOT_LANDED = "the companion has no state at this gap"
 
@@ -426,7 +432,7 @@ def run_case_3d_selected(
     k = spec.solver.band_companion
     if k:
         check_companion(spec, k)
-    own_spec = replace(spec, solver=replace(spec.solver, band_companion=0))
+    own_spec = own_run_spec(spec)
     res = run_case_3d(own_spec, progress, solver, on_step)
     if k == 0:
         return res
@@ -473,7 +479,7 @@ def select_band(
     if k == 0:
         raise ValueError("select_band: spec.solver.band_companion is 0 (no companion asked)")
     check_companion(spec, k)
-    own_spec = replace(spec, solver=replace(spec.solver, band_companion=0))
+    own_spec = own_run_spec(spec)
     t0 = time.perf_counter()
     gaps = band_gaps(result.table, spec.thickness_mm, band)
     if not gaps:

@@ -222,6 +222,18 @@ def input_hash(spec: CaseSpec) -> str:
     return sha256_bytes(canonical_json(spec_record(spec)).encode())
 
 
+def input_mismatch(meta: Mapping[str, Any], spec: CaseSpec) -> str | None:
+    """How a stored case's inputs differ from ``spec``'s: None if its sidecar's ``input_hash``
+    is :func:`input_hash` of ``spec``, else the differing parameters
+    (:func:`format_differences` of its recorded ``spec``; ``"input_hash differs"`` if no
+    recorded parameter differs)."""
+    if meta.get("input_hash") == input_hash(spec):
+        return None
+    theirs = meta.get("spec") if isinstance(meta.get("spec"), dict) else {}
+    diffs = parameter_differences(theirs, spec_record(spec))
+    return format_differences(diffs) or "input_hash differs"
+
+
 # --------------------------------------------------------------------------- cases
 
 

@@ -174,9 +174,7 @@ def make_report(
 def _selected_cases(directory: str | os.PathLike[str]) -> list[tuple[dict, pd.DataFrame]]:
     """``(sidecar, table)`` of every case of ``directory`` with a band selection."""
     out = []
-    for meta_path in sorted(Path(directory).glob("*.json")):
-        if meta_path.name == "sweep.json":
-            continue
+    for meta_path in df.case_json_paths(directory):
         case = df.read_case(meta_path)
         if (case.meta.get("fe_info") or {}).get("band_selection"):
             out.append((case.meta, case.table))
@@ -244,9 +242,7 @@ def plot_case_sections(
     from grasprom.fe.snapshots3d import plot_sections
 
     pngs = []
-    for meta_path in sorted(Path(directory).glob("*.json")):
-        if meta_path.name == "sweep.json":
-            continue
+    for meta_path in df.case_json_paths(directory):
         meta = df.read_case(meta_path).meta
         sections = (meta.get("fe_info") or {}).get("sections")
         if sections:

@@ -10,7 +10,8 @@ it writes are those of ``--band-companion K`` (same input hash, same rows), with
 wall time added to the selection's and its provenance kept in ``fe_info.own_run``.
 
 The own run is taken only if its sidecar's input hash is that of the case with
-``band_companion`` 0 (:func:`own_run_spec`): same material, geometry, mesh and solver settings.
+``band_companion`` 0 (:func:`grasprom.fe.bandselect.own_run_spec`): same material, geometry,
+mesh and solver settings.
 Its rows are the stored ones, whatever revision of the code computed them (``fe_info.own_run``
 records it): they equal a fresh run's when that revision's solution path is the current one
 (``fe_info.solver_rules``, absent from sidecars written before it).  The selection itself
@@ -20,25 +21,20 @@ compares equilibria of one mesh and one set of equations, which holds for any su
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 from grasprom.fe import datafiles as df
-from grasprom.fe.bandselect import select_band
+from grasprom.fe.bandselect import own_run_spec, select_band
 from grasprom.fe.grid import SweepInputError
 from grasprom.fe.model2d import CaseResult
 from grasprom.fe.model3d import CaseSpec3D
 from grasprom.fe.sweep import PRIOR_WALL_TIME_KEY
 
-__all__ = ["StoredOwnRuns", "check_own_runs", "own_run_spec", "read_own_run"]
+__all__ = ["StoredOwnRuns", "check_own_runs", "read_own_run"]
 
 #: Sidecar keys of the own run kept in ``fe_info.own_run`` of a case selected from it.
 OWN_RUN_KEYS = ("git_revision", "git_dirty", "written_at", "versions", "wall_time_s")
-
-
-def own_run_spec(spec: CaseSpec3D) -> CaseSpec3D:
-    """``spec`` without the companion (``solver.band_companion`` 0): the case's own run."""
-    return replace(spec, solver=replace(spec.solver, band_companion=0))
 
 
 def read_own_run(spec: CaseSpec3D, source: str | os.PathLike[str]) -> df.LoadedCase:
@@ -68,12 +64,11 @@ def read_own_run(spec: CaseSpec3D, source: str | os.PathLike[str]) -> df.LoadedC
     if not files.json.exists():
         raise SweepInputError(f"--select-from: no case {files.json.name} in {source}")
     case = df.read_case(files.json)
-    if case.meta.get("input_hash") != df.input_hash(own):
-        theirs = case.meta.get("spec") if isinstance(case.meta.get("spec"), dict) else {}
-        diffs = df.parameter_differences(theirs, df.spec_record(own))
+    differs = df.input_mismatch(case.meta, own)
+    if differs is not None:
         raise SweepInputError(
-            f"--select-from: {files.json} was computed with other inputs "
-            f"({df.format_differences(diffs) or 'input_hash differs'}; file != this run)"
+            f"--select-from: {files.json} was computed with other inputs ({differs}; file != "
+            "this run)"
         )
     return case
 

@@ -389,13 +389,11 @@ def _existing_status(out_dir: Path, spec: CaseSpec) -> str | None:
     if not files.json.exists():
         return None
     case = df.read_case(files.json)
-    if case.meta["input_hash"] != df.input_hash(spec):
-        theirs = case.meta.get("spec") if isinstance(case.meta.get("spec"), dict) else {}
-        diffs = df.parameter_differences(theirs, df.spec_record(spec))
+    differs = df.input_mismatch(case.meta, spec)
+    if differs is not None:
         raise SweepConflictError(
-            f"--out: {files.json} was computed with different inputs "
-            f"({df.format_differences(diffs) or 'input_hash differs'}; file != this run); "
-            "use another --out directory"
+            f"--out: {files.json} was computed with different inputs ({differs}; file != this "
+            "run); use another --out directory"
         )
     return str(case.meta["status"])
 
