@@ -937,11 +937,14 @@ def _sweep_case(
     builds them: the mesh and solver settings of ``fe_data/default``, whose sidecars record the
     same spec; ``mesh="zoned"``: those of ``fe_data/3d_zoned``): 4 x 36 graded 8:1 (zoned: 2 x
     18 beyond the jaw zone), six axial divisions beyond the jaw, 240 mm tube, stick, contact
-    predicted below gap 2.5 t, to the force cap, no landing gaps."""
+    predicted below gap 2.5 t, to the force cap, no landing gaps; the case's own run
+    (``band_companion`` 0: the sweep's default adds the companion and the band selection,
+    :mod:`grasprom.fe.bandselect`)."""
     from grasprom.fe import build_grid
     from grasprom.fe.grid3d import Model3DOptions, to_3d
 
-    return to_3d(build_grid(f"{thickness:g}", material), Model3DOptions(mesh=mesh), {})[0]
+    opts = Model3DOptions(mesh=mesh, band_companion=0)
+    return to_3d(build_grid(f"{thickness:g}", material), opts, {})[0]
 
 
 def bench_factor_reuse(material: str = "nh", thickness: float = 2.0) -> dict:

@@ -33,11 +33,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--model", choices=("2d", "3d"), default="2d", help="FE model (default 2d)")
     p.add_argument("--mesh", choices=tuple(MESH_PRESETS), default=DEFAULT_MESH_PRESET,
                    help=f"3d: named mesh (default {DEFAULT_MESH_PRESET}, as sweep)")  # fmt: skip
+    p.add_argument("--band-companion", type=int, default=None, metavar="K",
+                   help="3d: as sweep (default: the mesh's; 0: own runs)")  # fmt: skip
     args = p.parse_args(argv)
 
     specs = build_grid(args.thickness, args.material)
     if args.model == "3d":  # the defaults of `grasprom sweep --model 3d`
-        specs = to_3d(specs, Model3DOptions(mesh=args.mesh), {})
+        opts = Model3DOptions(mesh=args.mesh, band_companion=args.band_companion)
+        specs = to_3d(specs, opts, {})
     counts = [int(w) for w in args.workers.split(",")]
     base = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="grasprom-bench-"))
     print(f"{len(specs)} {args.model} cases ({args.material} x {args.thickness} mm), "

@@ -298,15 +298,16 @@ def _add_mesh3d_options(s: argparse.ArgumentParser) -> None:
         help="3d: after each case a companion run on its mesh with --far-coarsening K lands on "
         "the case's crease-band gaps (2t-4t); where its state, moved to the case's mesh, holds "
         "less strain energy it replaces the case's row (two runs can reach different crease "
-        "patterns; this keeps the lower one; 2 with the default mesh: about 1.4-2.5x the time; "
-        "default 0, off; grasprom.fe.bandselect)",
+        "patterns; this keeps the lower one; the selection costs 0.4-1.5x the own run; default "
+        "of --mesh: 2 with converged, the shipped data's, unless a mesh option overrides it or "
+        "the contact is coulomb; otherwise 0, off; grasprom.fe.bandselect)",
     )
     s.add_argument(
         "--select-from",
         default=None,
         metavar="DIR",
-        help="3d with --band-companion: take each case's own run from DIR (a sweep of the same "
-        "cases without --band-companion, e.g. fe_data/default) instead of running it again, "
+        help="3d with a band companion: take each case's own run from DIR (a sweep of the same "
+        "cases with --band-companion 0) instead of running it again, "
         "and run only the companion and the selection; writes to --out (another directory) "
         "what the sweep with --band-companion would (grasprom.fe.reselect)",
     )

@@ -56,10 +56,15 @@ class MeshPreset:
     predict_contact_below_t : float or None
         ``SolverSettings.predict_contact_below_t`` (jaw gap in wall thicknesses) unless
         ``--predict-contact-below`` is given; None: off.
+    band_companion : int
+        ``SolverSettings.band_companion`` unless ``--band-companion`` is given (0: off). It
+        belongs to the preset's mesh: a mesh option that overrides the preset, or Coulomb
+        contact (whose states strain energy does not rank), turns it off.
     """
 
     mesh: Mapping[str, float]
     predict_contact_below_t: float | None
+    band_companion: int = 0
 
 
 MESH_PRESETS: Mapping[str, MeshPreset] = MappingProxyType(
@@ -67,6 +72,7 @@ MESH_PRESETS: Mapping[str, MeshPreset] = MappingProxyType(
         "converged": MeshPreset(
             MappingProxyType({"n_layers": 4, "n_circ": 36, "grading": 8.0, "n_free": 6}),
             2.5,
+            band_companion=2,
         ),
         "coarse": MeshPreset(
             MappingProxyType({}),
@@ -81,7 +87,8 @@ MESH_PRESETS: Mapping[str, MeshPreset] = MappingProxyType(
     }
 )
 """The named 3D meshes of ``--mesh``: ``converged`` (4 x 36 graded 8:1, 6 axial divisions beyond
-the jaw, contact predicted below gap 2.5 t: the mesh of the shipped ``fe_data/default``),
+the jaw, contact predicted below gap 2.5 t, the crease band selected with a companion on the
+2 x 18 far zone: the mesh and settings of the shipped ``fe_data/default``),
 ``coarse`` (the :class:`~grasprom.fe.mesh3d.MeshSpec3D` defaults, 2 x 12: ``fe_data/3d_2x12``,
 converged in bending only) and ``zoned`` (``converged`` over the jaw and its 2 mm margin, 2 x 18
 beyond: ``far_coarsening`` 2, 56 % of the unknowns and 30 % of the sweep's worker time);
@@ -256,6 +263,7 @@ def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, float])
     from grasprom.fe.model3d import CaseSpec3D
 
     preset = MESH_PRESETS[opts.mesh or DEFAULT_MESH_PRESET]
+    default_companion = _preset_companion(preset, opts, mesh_given=bool(mesh))
     mesh = {**preset.mesh, **mesh}
     if mesh.get("n_circ", MIN_CIRC_3D) < MIN_CIRC_3D:
         raise SweepInputError(
@@ -267,7 +275,7 @@ def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, float])
     extra["friction"] = float(opts.friction) if opts.contact == "coulomb" else 0.0
     axial = {k: extra.pop(k) for k in ("n_jaw", "n_free", "far_coarsening") if k in extra}
     below_t = extra.pop("predict_contact_below_t", preset.predict_contact_below_t)
-    companion = int(extra.pop("band_companion", 0))
+    companion = int(extra.pop("band_companion", default_companion))
     extra.pop("mesh", None)
     try:
         mesh3d = MeshSpec3D(**{**mesh, **axial})
@@ -296,6 +304,15 @@ def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, float])
     if companion:
         _check_companion(out[0] if out else None, companion)
     return out
+
+
+def _preset_companion(preset: MeshPreset, opts: Model3DOptions, mesh_given: bool) -> int:
+    """The preset's band companion, or 0 where a mesh option overrides the preset's mesh or
+    the contact is Coulomb (:attr:`MeshPreset.band_companion`)."""
+    axial = (opts.n_jaw, opts.n_free, opts.far_coarsening)
+    if mesh_given or any(v is not None for v in axial) or opts.contact == "coulomb":
+        return 0
+    return preset.band_companion
 
 
 def _check_companion(spec, companion: int) -> None:

@@ -156,16 +156,41 @@ def test_3d_sweep_takes_the_band_companion(tmp_path):
     meta = _sweep_3d_meta(tmp_path / "companion", "--n-layers", "2", "--band-companion", "2")
     assert meta["spec"]["solver"]["band_companion"] == 2 and meta["status"] == "complete"
     assert meta["fe_info"]["band_selection"]["status"] == "no band gaps"
-    (plain,) = to_3d(build_grid("1.4", "mr"), Model3DOptions(), {})
+    (plain,) = to_3d(build_grid("1.4", "mr"), Model3DOptions(band_companion=0), {})
     assert "band_companion" not in sweep_parameters(plain)["solver"]
+
+
+@pytest.mark.parametrize(
+    "opts, mesh, expected",
+    [
+        ({}, {}, 2),  # the converged preset's: the shipped data's selection
+        ({"band_companion": 0}, {}, 0),  # off
+        ({"band_companion": 4}, {}, 4),  # another companion, given
+        ({"mesh": "converged"}, {}, 2),
+        ({"mesh": "coarse"}, {}, 0),
+        ({"mesh": "zoned"}, {}, 0),
+        ({}, {"n_circ": 24}, 0),  # a mesh option leaves the preset's mesh: no companion
+        ({"n_free": 3}, {}, 0),
+        ({"far_coarsening": 2}, {}, 0),
+        ({"contact": "frictionless"}, {}, 2),  # strain energy ranks frictionless states
+        ({"contact": "coulomb", "friction": 0.3}, {}, 0),  # and not Coulomb ones
+    ],
+)
+def test_the_converged_mesh_selects_the_crease_band_by_default(opts, mesh, expected):
+    """``--mesh converged`` (the default) brings the shipped data's band companion 2 with its
+    mesh (MeshPreset.band_companion); the other presets, a mesh option overriding the preset's
+    mesh, or Coulomb contact leave it off; ``--band-companion K`` always wins."""
+    (case,) = to_3d(build_grid("1.4", "mr"), Model3DOptions(**opts), mesh)
+    assert case.solver.band_companion == expected
+    assert MESH_PRESETS["converged"].band_companion == 2
 
 
 def test_the_zoned_mesh_is_the_converged_one_with_a_coarsened_far_zone():
     """``--mesh zoned``: the converged preset's mesh and predicted contact with
     ``far_coarsening`` 2; ``--far-coarsening 1`` on top of it gives back the shipped mesh (the
-    same input hash as the shipped case)."""
+    same input hash as the shipped case's own run, ``--band-companion 0``)."""
     specs = build_grid("1.4", "mr")
-    (conv,) = to_3d(specs, Model3DOptions(), {})
+    (conv,) = to_3d(specs, Model3DOptions(band_companion=0), {})  # the own run
     (zoned,) = to_3d(specs, Model3DOptions(mesh="zoned"), {})
     assert zoned.mesh == replace(conv.mesh, far_coarsening=2)
     assert zoned.solver == conv.solver and zoned.solver.predict_contact_below_t == 2.5
