@@ -326,8 +326,9 @@ def _add_mesh3d_options(s: argparse.ArgumentParser) -> None:
         default=None,
         metavar="NAME",
         help="3d: named mesh, converged (default; the shipped fe_data/default's: 4 x 36 graded "
-        "8:1, 6 axial divisions beyond the jaw, contact predicted below 2.5 t; 6-34 min a "
-        "case), coarse (2 x 12 graded 2:1, 9 beyond: fe_data/3d_2x12, converged in bending "
+        "8:1, 6 axial divisions beyond the jaw, contact predicted below 2.5 t, the crease band "
+        "selected with --band-companion 2; 6-34 min a case and 0.4-1.5x that for the "
+        "selection), coarse (2 x 12 graded 2:1, 9 beyond: fe_data/3d_2x12, converged in bending "
         "only; 2-5 min a case) or zoned (converged over the jaw, 2 x 18 beyond its 2 mm margin: "
         "--far-coarsening 2; 2-10 min a case); the mesh options above override it one by one "
         "(grasprom.fe.grid3d.MESH_PRESETS)",

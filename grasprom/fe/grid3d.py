@@ -131,7 +131,9 @@ class Model3DOptions:
     band_companion : int or None
         ``SolverSettings.band_companion``: the ``far_coarsening`` of a companion run whose
         crease-band states replace the case's where they hold less strain energy
-        (:mod:`grasprom.fe.bandselect`); 0 or None: off.
+        (:mod:`grasprom.fe.bandselect`); 0: off; None: the preset's
+        (:attr:`MeshPreset.band_companion`: 2 with ``converged`` unless a mesh option
+        overrides it or the contact is Coulomb).
     """
 
     contact: str | None = None
