@@ -19,7 +19,14 @@ import time
 from pathlib import Path
 
 from grasprom.fe import build_grid, load_sweep, run_sweep
-from grasprom.fe.grid3d import DEFAULT_MESH_PRESET, MESH_PRESETS, Model3DOptions, to_3d
+from grasprom.fe.grid import SweepInputError
+from grasprom.fe.grid3d import (
+    DEFAULT_MESH_PRESET,
+    MESH_PRESETS,
+    Model3DOptions,
+    check_options,
+    to_3d,
+)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -40,6 +47,10 @@ def main(argv: list[str] | None = None) -> int:
     specs = build_grid(args.thickness, args.material)
     if args.model == "3d":  # the defaults of `grasprom sweep --model 3d`
         opts = Model3DOptions(mesh=args.mesh, band_companion=args.band_companion)
+        try:
+            check_options("3d", opts)
+        except SweepInputError as exc:
+            raise SystemExit(f"bench_sweep: {exc}") from exc
         specs = to_3d(specs, opts, {})
     counts = [int(w) for w in args.workers.split(",")]
     base = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="grasprom-bench-"))

@@ -204,8 +204,9 @@ def check_companion(spec: CaseSpec3D, far_coarsening: int) -> None:
     ValueError
         Coulomb contact (friction dissipates: strain energy does not rank its states, as
         for Maxwell's crease placement), ``far_coarsening`` equal to the case's own (the
-        companion would be the same mesh), or one the mesh does not take (it must divide the
-        layers and the circumferential divisions).
+        companion would be the same mesh), one the mesh does not take (it must divide the
+        layers and the circumferential divisions), or a tube without a far zone to coarsen
+        (half its length within half the jaw plus ``fine_margin_mm``, or ``n_free`` 0).
     """
     if spec.contact == "coulomb":
         raise ValueError(
@@ -218,6 +219,13 @@ def check_companion(spec: CaseSpec3D, far_coarsening: int) -> None:
             "must be another mesh"
         )
     replace(spec.mesh, far_coarsening=int(far_coarsening))  # MeshSpec3D checks it
+    fine_end = 0.5 * spec.jaw_length_mm + spec.mesh.fine_margin_mm
+    if int(far_coarsening) > 1 and (fine_end >= 0.5 * spec.tube_length_mm or spec.mesh.n_free < 1):
+        raise ValueError(
+            f"band_companion={far_coarsening}: the tube has no far zone to coarsen (half its "
+            f"length {0.5 * spec.tube_length_mm:g} mm within half the jaw plus the fine margin, "
+            f"{fine_end:g} mm, or n_free={spec.mesh.n_free})"
+        )
 
 
 def companion_spec(spec: CaseSpec3D, gaps, far_coarsening: int) -> CaseSpec3D:

@@ -58,8 +58,10 @@ class MeshPreset:
         ``--predict-contact-below`` is given; None: off.
     band_companion : int
         ``SolverSettings.band_companion`` unless ``--band-companion`` is given (0: off). It
-        belongs to the preset's mesh: a mesh option that overrides the preset, or Coulomb
-        contact (whose states strain energy does not rank), turns it off.
+        belongs to the preset's mesh: a mesh option that overrides the preset (even at the
+        preset's value), Coulomb contact (whose states strain energy does not rank) or a case
+        that cannot have it (a tube too short for a far zone) turns it off; the other options
+        (``--predict-contact-below``, tube, jaw, contact law otherwise) keep it.
     """
 
     mesh: Mapping[str, float]
@@ -303,18 +305,34 @@ def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, float])
         if below_t is not None:  # in thicknesses, so that the cases share their settings
             solver = dataclasses.replace(solver, predict_contact_below_t=float(below_t))
         out.append(dataclasses.replace(spec, solver=solver))
+    if companion and opts.band_companion is None and out and not _companion_fits(out[0], companion):
+        return [dataclasses.replace(s, solver=dataclasses.replace(s.solver, band_companion=0))
+                for s in out]  # fmt: skip
     if companion:
         _check_companion(out[0] if out else None, companion)
     return out
 
 
 def _preset_companion(preset: MeshPreset, opts: Model3DOptions, mesh_given: bool) -> int:
-    """The preset's band companion, or 0 where a mesh option overrides the preset's mesh or
-    the contact is Coulomb (:attr:`MeshPreset.band_companion`)."""
+    """The preset's band companion, or 0 where a mesh option overrides the preset's mesh (even
+    at the preset's value) or the contact is Coulomb (:attr:`MeshPreset.band_companion`)."""
     axial = (opts.n_jaw, opts.n_free, opts.far_coarsening)
     if mesh_given or any(v is not None for v in axial) or opts.contact == "coulomb":
         return 0
     return preset.band_companion
+
+
+def _companion_fits(spec, companion: int) -> bool:
+    """Whether the cases (they share mesh, tube and contact) can have the preset's companion
+    (:func:`grasprom.fe.bandselect.check_companion`; e.g. not on a tube too short for a far
+    zone): where not, the preset's companion is off rather than an error."""
+    from grasprom.fe.bandselect import check_companion
+
+    try:
+        check_companion(spec, companion)
+    except ValueError:
+        return False
+    return True
 
 
 def _check_companion(spec, companion: int) -> None:

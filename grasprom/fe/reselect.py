@@ -94,7 +94,8 @@ def check_own_runs(specs, source: str | os.PathLike[str]) -> None:
         if not isinstance(spec, CaseSpec3D) or spec.solver.band_companion < 1:
             raise SweepInputError(
                 "--select-from: needs --model 3d and --band-companion K >= 1 (it adds the "
-                "companion's selection to stored runs; --mesh converged, the default, has 2)"
+                "companion's selection to stored runs; --mesh converged, the default, has 2 unless "
+                "a mesh option overrides it)"
             )
         try:
             read_own_run(spec, source)

@@ -248,6 +248,10 @@ def test_a_companion_that_cannot_help_is_refused_before_the_run():
     with pytest.raises(ValueError, match="not with Coulomb contact"):
         run_case_3d_selected(_with_companion(coulomb, 2))
     check_companion(zoned, 1)  # the zoned case's companion on one cross-section is fine
+    short = replace(SPEC, tube_length_mm=SPEC.jaw_length_mm + 2 * SPEC.mesh.fine_margin_mm)
+    with pytest.raises(ValueError, match="no far zone"):  # before the run, not after it
+        check_companion(short, 2)
+    check_companion(replace(short, tube_length_mm=short.tube_length_mm + 1.0), 2)
 
 
 def test_a_choice_records_json_ready():

@@ -174,6 +174,11 @@ def test_3d_sweep_takes_the_band_companion(tmp_path):
         ({"far_coarsening": 2}, {}, 0),
         ({"contact": "frictionless"}, {}, 2),  # strain energy ranks frictionless states
         ({"contact": "coulomb", "friction": 0.3}, {}, 0),  # and not Coulomb ones
+        ({}, {"n_circ": 36}, 0),  # a mesh option even at the preset's value
+        ({"n_jaw": 4}, {}, 0),
+        ({"predict_contact_below_t": 3.0}, {}, 2),  # a solver option keeps it
+        ({"tube_length_mm": 40.0}, {}, 2),
+        ({"tube_length_mm": 14.0}, {}, 0),  # jaw 10 + 2 x 2 mm margin: no far zone to coarsen
     ],
 )
 def test_the_converged_mesh_selects_the_crease_band_by_default(opts, mesh, expected):
@@ -255,6 +260,7 @@ def test_3d_sweep_with_coulomb_contact_records_the_coefficient(tmp_path):
         (["--model", "3d", "--band-companion", "-1"], "--band-companion: must be an integer >= 0"),
         (["--model", "3d", "--band-companion", "5"], "--band-companion: far_coarsening=5 must"),
         (["--model", "3d", "--mesh", "zoned", "--band-companion", "2"], "must be another mesh"),
+        (["--model", "3d", "--tube-length", "14", "--band-companion", "2"], "no far zone"),
         (
             ["--model", "3d", "--contact", "coulomb", "--friction", "0.2", "--band-companion", "2"],
             "--band-companion: not with Coulomb contact",
