@@ -33,8 +33,9 @@ from typing import Any
 
 import numpy as np
 
+from grasprom.fe.mesh3d import has_far_zone
 from grasprom.fe.model2d import CaseResult
-from grasprom.fe.model3d import CaseSpec3D, EquilibriumSolver, run_case_3d
+from grasprom.fe.model3d import CaseSpec3D, EquilibriumSolver, axial_grid, run_case_3d
 from grasprom.fe.transfer3d import transfer_matrix
 
 __all__ = [
@@ -219,12 +220,12 @@ def check_companion(spec: CaseSpec3D, far_coarsening: int) -> None:
             "must be another mesh"
         )
     replace(spec.mesh, far_coarsening=int(far_coarsening))  # MeshSpec3D checks it
-    fine_end = 0.5 * spec.jaw_length_mm + spec.mesh.fine_margin_mm
-    if int(far_coarsening) > 1 and (fine_end >= 0.5 * spec.tube_length_mm or spec.mesh.n_free < 1):
+    if int(far_coarsening) > 1 and not has_far_zone(axial_grid(spec), spec.mesh.n_jaw):
         raise ValueError(
-            f"band_companion={far_coarsening}: the tube has no far zone to coarsen (half its "
-            f"length {0.5 * spec.tube_length_mm:g} mm within half the jaw plus the fine margin, "
-            f"{fine_end:g} mm, or n_free={spec.mesh.n_free})"
+            f"band_companion={far_coarsening}: the tube has no far zone to coarsen beyond the "
+            f"jaw and its fine margin (tube_length_mm={spec.tube_length_mm:g}, jaw_length_mm="
+            f"{spec.jaw_length_mm:g}, fine_margin_mm={spec.mesh.fine_margin_mm:g}, "
+            f"n_free={spec.mesh.n_free})"
         )
 
 

@@ -301,31 +301,35 @@ def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, float])
             mesh=mesh3d,
             **extra,
         )
-        solver = dataclasses.replace(spec.solver, band_companion=companion)
+        solver = spec.solver
         if below_t is not None:  # in thicknesses, so that the cases share their settings
             solver = dataclasses.replace(solver, predict_contact_below_t=float(below_t))
         out.append(dataclasses.replace(spec, solver=solver))
     if companion and opts.band_companion is None and out and not _companion_fits(out[0], companion):
-        return [dataclasses.replace(s, solver=dataclasses.replace(s.solver, band_companion=0))
-                for s in out]  # fmt: skip
+        companion = 0  # the preset's, where the cases cannot have it
     if companion:
         _check_companion(out[0] if out else None, companion)
-    return out
+    return [
+        dataclasses.replace(s, solver=dataclasses.replace(s.solver, band_companion=companion))
+        for s in out
+    ]
 
 
 def _preset_companion(preset: MeshPreset, opts: Model3DOptions, mesh_given: bool) -> int:
     """The preset's band companion, or 0 where a mesh option overrides the preset's mesh (even
-    at the preset's value) or the contact is Coulomb (:attr:`MeshPreset.band_companion`)."""
+    at the preset's value; :attr:`MeshPreset.band_companion`; a case that cannot have it, e.g.
+    with Coulomb contact, is left to :func:`_companion_fits`)."""
     axial = (opts.n_jaw, opts.n_free, opts.far_coarsening)
-    if mesh_given or any(v is not None for v in axial) or opts.contact == "coulomb":
+    if mesh_given or any(v is not None for v in axial):
         return 0
     return preset.band_companion
 
 
 def _companion_fits(spec, companion: int) -> bool:
     """Whether the cases (they share mesh, tube and contact) can have the preset's companion
-    (:func:`grasprom.fe.bandselect.check_companion`; e.g. not on a tube too short for a far
-    zone): where not, the preset's companion is off rather than an error."""
+    (:func:`grasprom.fe.bandselect.check_companion`: not with Coulomb contact, nor on a tube
+    too short for a far zone): where not, the preset's companion is off rather than an
+    error."""
     from grasprom.fe.bandselect import check_companion
 
     try:

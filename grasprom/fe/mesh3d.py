@@ -461,12 +461,18 @@ def _outer_area(m, element, outer_f) -> np.ndarray:
     return skfem.LinearForm(lambda v, w: v).assemble(fb)
 
 
+def has_far_zone(z_nodes, n_fine: int | None) -> bool:
+    """Whether the axial grid ``z_nodes`` (mm) has divisions beyond the fine zone's first
+    ``n_fine``: a far zone that ``MeshSpec3D.far_coarsening`` > 1 can coarsen."""
+    return n_fine is not None and 0 < n_fine < len(z_nodes) - 1
+
+
 def _zoned_mesh(outer_radius: float, thickness: float, z_nodes, mesh: MeshSpec3D, n_fine):
     """The tube's mesh and, with a coarsened far zone, the number of fine-zone elements (None
     for one cross-section along the tube)."""
     if mesh.far_coarsening == 1:
         return tube_mesh(outer_radius, thickness, z_nodes, mesh), None
-    if n_fine is None or not 0 < n_fine < len(z_nodes) - 1:
+    if not has_far_zone(z_nodes, n_fine):
         raise ValueError(
             f"far_coarsening={mesh.far_coarsening} needs a far zone beyond the fine one: a tube "
             "longer than the jaw plus twice fine_margin_mm, n_free >= 1 and the fine zone's "
