@@ -19,6 +19,14 @@ def force_at(df, material: str, t: float, gap: float) -> float:
     return float(np.interp(-gap, -g, f))
 
 
+def log_force_at(g: np.ndarray, f: np.ndarray, gaps) -> np.ndarray:
+    """Force (N) at ``gaps`` (mm) of a run with rows at gaps ``g`` (mm) and forces ``f`` (N),
+    its logarithm interpolated along the rows (the force grows about exponentially as the gap
+    closes; linear interpolation between steps 0.6 mm apart is off by up to 1.5 % in
+    bending)."""
+    return np.exp(np.interp(-np.asarray(gaps, float), -g, np.log(np.maximum(f, 1e-12))))
+
+
 def trapezoid_work(table) -> np.ndarray:
     """The jaws' work (mJ = N mm) up to each row of a case table: the trapezoid rule of
     ``force_N`` over the gap closed (two jaws, each moving half the gap change)."""

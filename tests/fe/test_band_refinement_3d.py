@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 
 from grasprom.fe.datafiles import read_case
+from tests.fe.curves import log_force_at
 
 ROOT = Path(__file__).resolve().parents[2]
 REFERENCE = ROOT / "fe_data" / "band_4x48"
@@ -35,9 +36,8 @@ MEASURED = {
 
 
 def _log_force(table, gaps: np.ndarray) -> np.ndarray:
-    """Force (N) at ``gaps`` (mm), its logarithm interpolated along the run's rows."""
-    g, f = table["gap_mm"].to_numpy(), table["force_N"].to_numpy()
-    return np.exp(np.interp(-gaps, -g, np.log(np.maximum(f, 1e-12))))
+    """Force (N) of a case table at ``gaps`` (mm) (:func:`tests.fe.curves.log_force_at`)."""
+    return log_force_at(table["gap_mm"].to_numpy(), table["force_N"].to_numpy(), gaps)
 
 
 @pytest.mark.parametrize("stem", sorted(MEASURED))

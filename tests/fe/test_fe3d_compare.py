@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from grasprom.fe.datafiles import read_case
+from tests.fe.curves import log_force_at
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -26,13 +27,6 @@ def _curves(name: str, stem: str, energy: bool = True):
     tb = read_case(ROOT / "fe_data" / name / f"{stem}.json").table
     cols = ("gap_mm", "force_N", "strain_energy_mJ")[: 3 if energy else 2]
     return tuple(tb[c].to_numpy() for c in cols)
-
-
-def _force_at(g: np.ndarray, f: np.ndarray, gaps) -> np.ndarray:
-    """Force (N) at ``gaps`` (mm), its logarithm interpolated along the steps (the force grows
-    about exponentially as the gap closes; linear interpolation between steps 0.6 mm apart
-    is off by up to 1.5 % in bending)."""
-    return np.exp(np.interp(-np.asarray(gaps, float), -g, np.log(np.maximum(f, 1e-12))))
 
 
 def _gap_at_force(g: np.ndarray, f: np.ndarray, level: float) -> float:
@@ -84,12 +78,12 @@ def test_the_zoned_sweep_differs_from_the_shipped_one_only_between_branches(stem
     gd, fd, ed = _curves("default", stem)
     gz, fz, ez = _curves("3d_zoned", stem)
     for gap, tol in ((20.0, 0.010), (10.0, 0.010), (4.0 * t, 0.006)):
-        a, b = (_force_at(g, f, gap) for g, f in ((gd, fd), (gz, fz)))
+        a, b = (log_force_at(g, f, gap) for g, f in ((gd, fd), (gz, fz)))
         assert b == pytest.approx(a, rel=tol), (stem, gap)
     for force in (50.0, 100.0):
         assert abs(_gap_at_force(gz, fz, force) - _gap_at_force(gd, fd, force)) < 6e-3, force
     band = np.linspace(4.0 * t, 2.05 * t, 60)
-    dF = _force_at(gz, fz, band) / _force_at(gd, fd, band) - 1.0
+    dF = log_force_at(gz, fz, band) / log_force_at(gd, fd, band) - 1.0
     dE = np.interp(-band, -gz, ez) / np.interp(-band, -gd, ed) - 1.0
     apart = (np.abs(dF) > 0.05) & (np.abs(dE) > 5e-4)
     assert np.array_equal(np.sign(dF[apart]), np.sign(dE[apart]))
@@ -111,7 +105,7 @@ def test_the_zoned_sweep_has_cases_whose_band_paths_differ():
         gd, fd, ed = _curves("default", stem)
         gz, fz, ez = _curves("3d_zoned", stem)
         band = np.linspace(4.0 * t, 2.05 * t, 60)
-        dF = _force_at(gz, fz, band) / _force_at(gd, fd, band) - 1.0
+        dF = log_force_at(gz, fz, band) / log_force_at(gd, fd, band) - 1.0
         dE = np.interp(-band, -gz, ez) / np.interp(-band, -gd, ed) - 1.0
         apart = (np.abs(dF) > 0.05) & (np.abs(dE) > 5e-4)
         checked += int(apart.sum())
