@@ -5,6 +5,13 @@ Usage::
     python benchmarks/bench_fe.py [--thickness 0.8,1.4,2.0] [--material mr,nh,le]
     python benchmarks/bench_fe.py --crease [--thickness ...] [--material ...]
     python benchmarks/bench_fe.py --contact-laws --thickness 1.4
+    python benchmarks/bench_fe.py --refined-reference fe_data/2d_refined
+
+``--refined-reference DIR``: runs the 2D mesh-convergence case of
+``tests/fe/test_fe_model.py::test_mesh_convergence_default_vs_refined`` (mr, wall 0.8 mm,
+landing on its nine gaps) on the default mesh and on its 2x refinement, prints both forces and
+their ratio, and writes the refined run to ``DIR`` as a case (CSV + JSON sidecar), the reference
+that test reads (about 2.5 minutes on one core).
 
 ``--crease``: the force in the crease band (six gaps from 2 t + 0.05 mm to 4 t, and densely
 between the load steps) on the mesh and on its 2x refinement, and their ratio (target: within
@@ -84,6 +91,44 @@ def crease(mesh: MeshSpec, thicknesses: list[float], materials: list[str]) -> fl
     return worst
 
 
+def convergence_gaps(t: float) -> dict[str, float]:
+    """The gaps (mm) of the 2D mesh-convergence check at wall ``t`` (mm): bending (10 mm), six
+    in the crease band (2 t + 0.05 .. 4 t), the walls just met (2 t - 0.05) and compaction."""
+    band = np.round(np.linspace(2 * t + 0.05, 4 * t, 6), 3)
+    gaps = {"bending": 10.0, **{f"crease_{g}": float(g) for g in band}}
+    return gaps | {"walls_met": 2 * t - 0.05, "compaction": max(2 * t - 0.2, 1.5)}
+
+
+def refined_reference(out: str, t: float = 0.8) -> dict[str, float]:
+    """Run the 2D mesh-convergence case (mr, wall ``t`` mm) on the default mesh and its 2x
+    refinement, print the forces (N) at :func:`convergence_gaps` and their ratio, write the
+    refined run to ``out`` (a case: CSV + JSON sidecar) and return ``default / refined - 1``
+    per gap."""
+    from pathlib import Path
+
+    from grasprom.fe.datafiles import write_case
+
+    gaps = convergence_gaps(t)
+    solver = SolverSettings(land_on_gaps_mm=tuple(gaps.values()))
+    wall = MeshSpec().for_wall(15.0 - t, t)
+    forces = []
+    for mesh in (wall, wall.refined(2)):
+        spec = CaseSpec("mr", t, mesh=mesh, closed_gap_mm=gaps["compaction"], solver=solver)
+        t0 = time.perf_counter()
+        res = run_case(spec)
+        tb = res.table
+        forces.append({k: float(tb.loc[np.isclose(tb["gap_mm"], g, rtol=0, atol=1e-9),
+                                       "force_N"].iloc[0]) for k, g in gaps.items()})  # fmt: skip
+        print(f"{mesh}: {time.perf_counter() - t0:.1f} s, {res.info['newton_iterations']} Newton")
+    Path(out).mkdir(parents=True, exist_ok=True)
+    print("written:", write_case(out, spec, res).json)
+    rel = {k: forces[0][k] / forces[1][k] - 1 for k in gaps}
+    print(f"{'gap':>16} {'gap_mm':>7} {'default_N':>10} {'refined_N':>10} {'def/ref-1':>9}")
+    for k, g in gaps.items():
+        print(f"{k:>16} {g:7.3f} {forces[0][k]:10.5f} {forces[1][k]:10.5f} {rel[k]:+9.4f}")
+    return rel
+
+
 def contact_laws(mesh: MeshSpec, t: float = 1.4, mus=(0.1, 0.3, 1.0)) -> dict:
     """mr at wall ``t`` (mm): force (N) at gaps 20 / 10 / 5 mm, the gap (mm) where the force
     passes 20 N and the largest tangential share, frictionless, Coulomb (``mus``) and stick."""
@@ -129,7 +174,15 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="frictionless, Coulomb 0.1 / 0.3 / 1.0 and stick at the first --thickness (mr)",
     )
+    p.add_argument(
+        "--refined-reference",
+        metavar="DIR",
+        help="write the 2D mesh-convergence case's 2x refined run (mr, 0.8 mm) to DIR",
+    )
     args = p.parse_args(argv)
+    if args.refined_reference:
+        refined_reference(args.refined_reference)
+        return 0
     mesh = MeshSpec(
         n_layers=args.n_layers,
         n_circ=args.n_circ,
