@@ -16,6 +16,10 @@ the only changes made to a command (the first three keep the run inside the suit
 * a command documented to fail carries ``# expect exit N``: it must exit with exactly N (the
   page explains why), so the page changes when the behaviour does.
 
+A block that repeats one already run (the same commands, comments aside: README's two commands
+open getting-started.md too) is run once: the second run in the same checkout would prove
+nothing the first did not.
+
 Lines ending in ``&`` (a Dask scheduler and worker) run in the background; the block's whole
 process group is killed when it ends. Marked ``slow`` (a few minutes): CI runs it in its second
 step.
@@ -25,6 +29,7 @@ from __future__ import annotations
 
 import os
 import re
+import shlex
 import signal
 import subprocess
 import sys
@@ -84,6 +89,12 @@ def as_script(block: str) -> str:
     return "\n".join(as_run(line) for line in joined.splitlines())
 
 
+def command_words(script: str) -> tuple[tuple[str, ...], ...]:
+    """A script's commands as shell words, comments dropped: two blocks that differ only in
+    their comments (or spacing) give the same words."""
+    return tuple(tuple(shlex.split(line, comments=True)) for line in script.splitlines())
+
+
 def _run_block(script: str, cwd: Path, log: Path) -> tuple[int, str]:
     """Run one block; return its exit code and output.  The output goes to a file, not a pipe:
     a background process of the block (``dask scheduler &``) would hold a pipe open."""
@@ -124,6 +135,21 @@ def test_the_rules_rewrite_only_what_they_say():
     assert as_script("a \\\n    b\nc") == "a b\nc"
 
 
+def test_blocks_differing_only_in_comments_are_one_block():
+    a = as_script("python examples/diagnose_gap.py --out diag   # < 10 s")
+    b = as_script("python examples/diagnose_gap.py  --out diag  # another comment")
+    assert command_words(a) == command_words(b)
+    assert command_words(as_script("echo '# not a comment'")) != command_words(as_script("echo"))
+    assert command_words(a) != command_words(as_script("python examples/diagnose_gap.py"))
+    repeated = [
+        command_words(as_script(b))
+        for p in nav_pages()
+        if p.name in ("README.md", "getting-started.md")
+        for b in bash_blocks(p)[:2]
+    ]
+    assert repeated[:2] == repeated[2:]  # README's two commands open getting-started.md
+
+
 def test_every_page_with_commands_is_found():
     pages = {p.name for p in nav_pages() if bash_blocks(p)}
     assert {"README.md", "getting-started.md", "fe-sweeps.md", "fmu.md"} <= pages
@@ -134,9 +160,13 @@ def test_every_documented_command_runs_as_written(tmp_path):
     work = tmp_path / "checkout"
     work.mkdir()
     copy_checkout(work)
-    failures = []
+    failures, done = [], set()
     for page in nav_pages():
         for i, block in enumerate(bash_blocks(page), 1):
+            words = command_words(as_script(block))
+            if words in done:
+                continue
+            done.add(words)
             code, out = _run_block(as_script(block), work, tmp_path / f"{page.stem}_{i}.log")
             if code != 0:
                 failures.append(f"{page.name} block {i} (exit {code}):\n{block}\n{out[-3000:]}")
