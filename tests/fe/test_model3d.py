@@ -238,7 +238,7 @@ def test_plane_strain_configuration_reproduces_the_2d_model():
         mesh=MeshSpec3D(n_layers=2, n_circ=16, n_jaw=1, n_free=0, grading=1.0),
     )
     spec = replace(spec, solver=replace(spec.solver, land_on_gaps_mm=gaps))
-    r3 = run_case_3d(spec, solver="superlu")
+    r3 = run_case_3d(spec)
     assert r3.status == "complete"
     s2 = CaseSpec(
         "mr",
@@ -272,7 +272,7 @@ def short_stroke():
             mesh=COARSE,
         )
         spec = replace(spec, solver=replace(spec.solver, land_on_gaps_mm=gaps))
-        out[contact] = run_case_3d(spec, solver="superlu")
+        out[contact] = run_case_3d(spec)
     return gaps, out
 
 
@@ -312,8 +312,8 @@ def test_coarsened_far_zone_follows_the_one_cross_section_tube():
     fine = MeshSpec3D(n_layers=2, n_circ=16, n_jaw=3, n_free=3)
     spec = CaseSpec3D("mr", 1.4, tube_length_mm=30.0, closed_gap_mm=27.0)
     spec = replace(spec, solver=replace(spec.solver, land_on_gaps_mm=gaps))
-    rf = run_case_3d(replace(spec, mesh=fine), solver="superlu")
-    rz = run_case_3d(replace(spec, mesh=replace(fine, far_coarsening=2)), solver="superlu")
+    rf = run_case_3d(replace(spec, mesh=fine))
+    rz = run_case_3d(replace(spec, mesh=replace(fine, far_coarsening=2)))
     assert rz.status == rf.status == "complete"
     assert rz.info["dofs"] < 0.65 * rf.info["dofs"]
     for g in gaps:
