@@ -53,6 +53,7 @@ from dataclasses import replace
 import numpy as np
 import scipy.sparse as sp
 
+from grasprom.fe.datafiles import own_wall_time_s
 from grasprom.fe.mesh3d import MeshSpec3D
 from grasprom.fe.model2d import CaseSpec, MeshSpec, SolverSettings, run_case
 from grasprom.fe.model3d import CaseSpec3D, run_case_3d, semi_membrane_jaw_stiffness
@@ -246,7 +247,7 @@ def _case_row(table, info: dict, f2: dict) -> dict:
             for g in CASE_GAPS
         }
     return {
-        "wall_s": info.get("own_wall_time_s", info["wall_time_s"]),  # the own run's
+        "wall_s": own_wall_time_s(info),
         "dofs": info["dofs"],
         "steps": info["steps"],
         "newton": info["newton_iterations"],

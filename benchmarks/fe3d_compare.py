@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from grasprom.fe.datafiles import read_case
+from grasprom.fe.datafiles import own_wall_time_s, read_case
 
 GAPS = (20.0, 10.0, 5.0)
 BAND = (4.0, 3.0, 2.5, 2.0)  # multiples of t
@@ -88,7 +88,7 @@ def main(argv: list[str] | None = None) -> int:
     for m1, m2, _, _ in costs:
         i1, i2 = m1.get("fe_info", {}), m2.get("fe_info", {})
         cells = [
-            f"{i.get('own_wall_time_s', i.get('wall_time_s', np.nan)):6.0f} {i.get('dofs', 0):6d} "
+            f"{own_wall_time_s(i):6.0f} {i.get('dofs', 0):6d} "
             f"{i.get('steps', 0):4d} {i.get('newton_iterations', 0):5d} {i.get('failures', 0):3d}"
             + (f" +{i['band_selection']['wall_time_s']:5.0f}" if "band_selection" in i else "")
             for i in (i1, i2)

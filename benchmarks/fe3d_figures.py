@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from grasprom.fe.datafiles import read_case
+from grasprom.fe.datafiles import own_wall_time_s, read_case
 
 ROOT = Path(__file__).resolve().parents[1]
 GAPS = (20.0, 10.0, 5.0)
@@ -56,8 +56,7 @@ def main(argv: list[str] | None = None) -> int:
             g2, ff2 = t2["gap_mm"].to_numpy(), t2["force_N"].to_numpy()
             ratio = [a / _at(g2, ff2, x) for a, x in zip(f3, GAPS)]
         last = tb.iloc[-1]
-        wall = info.get("own_wall_time_s", info.get("wall_time_s", np.nan))  # the FE run's
-        print(f"{meta['stem']:<9} {wall:7.0f} {info.get('dofs', 0):6d} "
+        print(f"{meta['stem']:<9} {own_wall_time_s(info):7.0f} {info.get('dofs', 0):6d} "
               f"{info.get('steps', 0):5d} {info.get('newton_iterations', 0):6d}  "
               + " ".join(f"{x:5.3f}" for x in f3) + " "
               + " ".join(f"{x:8.2f}" for x in ratio)

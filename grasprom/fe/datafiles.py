@@ -383,6 +383,14 @@ def _finite_or_none(x: Any) -> float | None:
     return x if math.isfinite(x) else None
 
 
+def own_wall_time_s(fe_info: Mapping[str, Any]) -> float:
+    """Wall time (s) of a case's own FE run, from a sidecar's ``fe_info``: its
+    ``own_wall_time_s`` where a band selection added a companion run (its ``wall_time_s`` is
+    then the total; :mod:`grasprom.fe.bandselect`), else its ``wall_time_s``; NaN if neither.
+    """
+    return float(fe_info.get("own_wall_time_s", fe_info.get("wall_time_s", math.nan)))
+
+
 def read_json_file(path: str | os.PathLike[str], what: str = "JSON") -> Any:
     """Parse a UTF-8 JSON file, whatever the locale.
 

@@ -305,10 +305,11 @@ def to_3d(specs: Sequence[Any], opts: Model3DOptions, mesh: Mapping[str, float])
         if below_t is not None:  # in thicknesses, so that the cases share their settings
             solver = dataclasses.replace(solver, predict_contact_below_t=float(below_t))
         out.append(dataclasses.replace(spec, solver=solver))
-    if companion and opts.band_companion is None and out and not _companion_fits(out[0], companion):
-        companion = 0  # the preset's, where the cases cannot have it
-    if companion:
-        _check_companion(out[0] if out else None, companion)
+    if companion and out:
+        if opts.band_companion is not None:
+            _check_companion(out[0], companion)
+        elif not _companion_fits(out[0], companion):
+            companion = 0  # the preset's, where the cases cannot have it
     return [
         dataclasses.replace(s, solver=dataclasses.replace(s.solver, band_companion=companion))
         for s in out
@@ -342,8 +343,6 @@ def _companion_fits(spec, companion: int) -> bool:
 def _check_companion(spec, companion: int) -> None:
     """``--band-companion``: :func:`grasprom.fe.bandselect.check_companion` of a case (the
     cases share mesh and contact), as a SweepInputError."""
-    if spec is None:
-        return
     from grasprom.fe.bandselect import check_companion
 
     try:

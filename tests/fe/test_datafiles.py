@@ -146,3 +146,11 @@ def test_load_sweep_missing_dir(tmp_path):
     with pytest.raises(FileNotFoundError, match="nope"):
         df.load_sweep(tmp_path / "nope")
     assert df.load_sweep(tmp_path).empty
+
+
+def test_own_wall_time_is_the_fe_runs_not_the_selections():
+    """A band selection records the own run's time beside the total (bandselect); a sidecar
+    without one has only the total, which is then the own run's."""
+    assert df.own_wall_time_s({"wall_time_s": 900.0, "own_wall_time_s": 600.0}) == 600.0
+    assert df.own_wall_time_s({"wall_time_s": 900.0}) == 900.0
+    assert df.own_wall_time_s({}) != df.own_wall_time_s({})  # NaN: not recorded
