@@ -10,6 +10,19 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
+#: One thread per BLAS / OpenMP / MKL pool, in the test processes and every child they start.
+#: The suite runs two xdist workers on the machine's two cores; with the libraries' default of
+#: one thread per core each worker ran two, and the four busy threads made the 3D tests 2-3x
+#: slower (the stick-anchor test: 42 s with one thread and 46 s with two when run alone, 123 s in
+#: the slow step beside another test). numpy (OpenBLAS) and MKL read these when they load, which
+#: is after this module: nothing imports numpy before it (checked in each worker). A value set
+#: by the caller wins.
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+SET_HERE = tuple(v for v in THREAD_VARIABLES if v not in os.environ)
+"""The variables this module set to 1 (the others the caller set)."""
+for _var in SET_HERE:
+    os.environ[_var] = "1"
+
 
 @pytest.fixture
 def subprocess_env() -> dict[str, str]:

@@ -1,0 +1,59 @@
+"""The test processes run their numerical libraries on one thread each (``tests/conftest.py``).
+
+Two xdist workers share the machine's two cores; a library that starts one thread per core in
+each worker puts four busy threads on two cores, and the 3D tests of the slow step took 2-3x as
+long (1084 s for the step against 482 s). These tests read the thread pools the libraries
+actually opened (threadpoolctl), in a worker and in a child process, rather than the
+environment variables alone.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+from threadpoolctl import threadpool_info
+
+from grasprom.fe.linsolve import pardiso_available
+from grasprom.fe.sweep import BLAS_THREAD_VARS
+from tests.conftest import SET_HERE, THREAD_VARIABLES
+
+#: threadpoolctl's ``internal_api`` -> the variable that sets its pool's size.
+POOL_VARIABLE = {
+    "openblas": "OPENBLAS_NUM_THREADS",
+    "mkl": "MKL_NUM_THREADS",
+    "openmp": "OMP_NUM_THREADS",
+}
+
+
+def _check(info: list[dict]) -> None:
+    """Every pool of a known library has the size its variable sets: 1 where conftest set it."""
+    pools = [(p["internal_api"], p["num_threads"], p["filepath"]) for p in info]
+    assert {"openblas", "mkl"} <= {api for api, _, _ in pools}, pools
+    for api, n, path in pools:
+        if api in POOL_VARIABLE:
+            assert n == int(os.environ[POOL_VARIABLE[api]]), (api, n, path)
+            assert n == 1 or POOL_VARIABLE[api] not in SET_HERE, (api, n, path)
+
+
+def test_the_conftest_sets_what_the_sweep_sets_for_its_workers():
+    assert set(THREAD_VARIABLES) == set(BLAS_THREAD_VARS)
+
+
+def test_the_worker_pools_have_the_set_size():
+    np.ones((200, 200)) @ np.ones((200, 200))  # OpenBLAS is loaded and used
+    assert pardiso_available()  # loads MKL (pypardiso is a dev dependency)
+    _check(threadpool_info())
+
+
+def test_a_child_process_inherits_the_size():
+    code = (
+        "import json, numpy; from threadpoolctl import threadpool_info; "
+        "from grasprom.fe.linsolve import pardiso_available; pardiso_available(); "
+        "print(json.dumps(threadpool_info()))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    _check(json.loads(out.stdout))
