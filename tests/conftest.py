@@ -59,3 +59,24 @@ def surrogate_mr_le(tmp_path_factory):
     return Surrogate.build(
         copy_sweep("fe_data/2d", tmp_path_factory.mktemp("fe_mr_le"), ["mr", "le"])
     )
+
+
+def slow_seconds(item: pytest.Item) -> float | None:
+    """The ``seconds=`` of a test's ``slow`` marker (its measured cost); None if not slow."""
+    mark = item.get_closest_marker("slow")
+    return None if mark is None else mark.kwargs.get("seconds")
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Every ``slow`` test states its cost, ``@pytest.mark.slow(seconds=S)`` (measured alone
+    beside the other worker, this machine), and the slow tests run longest first.
+
+    CI's slow step hands them out one by one to whichever worker is free (``--dist loadgroup``),
+    so longest-first is the classic list schedule: 627 s for the step in collection order
+    against about 550 s computed for this order. A ``slow`` test without ``seconds`` stops the
+    collection, so a new one cannot fall to the end of the queue unnoticed.
+    """
+    missing = [i.nodeid for i in items if i.get_closest_marker("slow") and slow_seconds(i) is None]
+    if missing:
+        raise pytest.UsageError(f"slow tests without @pytest.mark.slow(seconds=...): {missing}")
+    items.sort(key=lambda i: -(slow_seconds(i) or 0.0))  # stable: the fast tests keep their order

@@ -198,7 +198,7 @@ def test_maxwell_crease_is_the_lower_energy_state():
     assert f[True][3] == pytest.approx(f[False][3], rel=0.01)  # both creased
 
 
-@pytest.mark.slow
+@pytest.mark.slow(seconds=7)
 def test_one_layer_through_the_wall_is_too_coarse():
     """The default's 2 layers are needed: 1 layer misses the bending criterion (~6 % at t = 2)."""
     solver = SolverSettings(land_on_gaps_mm=(10.0,))
@@ -296,7 +296,8 @@ def test_stick_anchors_at_the_touch_point_make_the_2d_force_independent_of_the_s
     assert np.max(np.abs(proj_coarse / touch_fine - 1)) > 4e-3
 
 
-@pytest.mark.slow
+@pytest.mark.slow(seconds=51)
+@pytest.mark.xdist_group("stick_vs_frictionless_2d")  # one fixture run
 def test_stick_contact_2d_against_the_independent_model(stick_vs_frictionless):
     """Stick (Guachi et al.'s no sliding) vs frictionless in 2D.
 
@@ -330,7 +331,8 @@ def test_contact_law_is_validated():
         run_case(CaseSpec("mr", 1.4, contact="glue"))
 
 
-@pytest.mark.slow
+@pytest.mark.slow(seconds=51)
+@pytest.mark.xdist_group("stick_vs_frictionless_2d")  # one fixture run
 def test_both_contact_laws_complete(stick_vs_frictionless):
     _, res = stick_vs_frictionless
     assert res["stick"].status == res["frictionless"].status == "complete"

@@ -29,7 +29,7 @@ def _hashes(d: Path) -> dict[str, str]:
     return {p.name: json.loads(p.read_text())["csv_sha256"] for p in df.case_json_paths(d)}
 
 
-@pytest.mark.slow
+@pytest.mark.slow(seconds=22)
 def test_kill_and_resume_loses_nothing_real_fe(tmp_path):
     out = tmp_path / "killed"
     cmd = [
@@ -63,7 +63,7 @@ def test_kill_and_resume_loses_nothing_real_fe(tmp_path):
     assert _hashes(clean) == after  # bit-identical to an uninterrupted sweep
 
 
-@pytest.mark.slow
+@pytest.mark.slow(seconds=22)
 def test_dask_cluster_equals_process_pool_real_fe(tmp_path):
     from dask.distributed import LocalCluster
 

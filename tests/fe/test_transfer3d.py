@@ -71,11 +71,16 @@ def test_a_point_far_outside_the_tube_is_an_error():
 GAPS = (20.0, 14.0)
 
 
+def _landing(spec):
+    """``spec`` stroked to the last of :data:`GAPS`, landing on each."""
+    spec = replace(spec, closed_gap_mm=GAPS[-1])
+    return replace(spec, solver=replace(spec.solver, land_on_gaps_mm=list(GAPS)))
+
+
 def _states(spec):
     """Each landing gap's force (N) and displacements (mm) of the forward run of ``spec``
     (``on_row``, whose last state at each gap is the table's row there)."""
-    spec = replace(spec, closed_gap_mm=GAPS[-1])
-    spec = replace(spec, solver=replace(spec.solver, land_on_gaps_mm=list(GAPS)))
+    spec = _landing(spec)
     out = {}
 
     def on_row(disc, u, gap, force):
@@ -87,7 +92,9 @@ def _states(spec):
 
 
 COARSE_A = replace(A, mesh=MeshSpec3D(n_layers=1, n_circ=8, n_jaw=3, n_free=3, grading=2.0))
-COARSE_B = replace(A, mesh=MeshSpec3D(n_layers=2, n_circ=10, n_jaw=4, n_free=3, grading=3.0))
+#: another layer count, cross-section and far-zone axial grid (n_jaw 4 instead of 3 made the
+#: forward run 38 s instead of 11 s: 24 steps against 20, the same checks)
+COARSE_B = replace(A, mesh=MeshSpec3D(n_layers=2, n_circ=10, n_jaw=3, n_free=4, grading=3.0))
 
 
 @pytest.mark.parametrize("contact", ["frictionless", "stick"])
@@ -119,10 +126,11 @@ def test_another_meshs_frictionless_state_lands_on_this_meshs_equilibrium():
 
 def test_one_solver_for_many_moves_equals_a_fresh_set_up_each():
     """An :class:`EquilibriumSolver` kept over several moves (one set-up) gives each state as a
-    fresh :func:`equilibrium_from` does, to the bit (each solve its own sparse solver), and
-    those land on the target mesh's own forward run (frictionless: to 1e-7, the reference)."""
+    fresh :func:`equilibrium_from` does, to the bit (each solve its own sparse solver). That
+    a fresh one lands on the target mesh's own forward run (the reference) is the test above,
+    on the same moves; B's forward run (most of that test's time) is not repeated here."""
     sa, a = _states(replace(COARSE_A, contact="frictionless"))
-    sb, b = _states(replace(COARSE_B, contact="frictionless"))
+    sb = _landing(replace(COARSE_B, contact="frictionless"))
     kept = EquilibriumSolver(sb)
     assert kept.ndof == build_disc(sb).ndof
     for gap in GAPS:
@@ -131,8 +139,7 @@ def test_one_solver_for_many_moves_equals_a_fresh_set_up_each():
         assert reused.force_N == fresh.force_N
         assert reused.strain_energy_mJ == fresh.strain_energy_mJ
         assert np.array_equal(reused.u, fresh.u)
-        assert reused.newton_iterations == fresh.newton_iterations
-        assert reused.force_N == pytest.approx(b[gap][0], rel=1e-7)
+        assert reused.newton_iterations == fresh.newton_iterations > 0
     with pytest.raises(ValueError, match="gap_mm"):
         kept.solve(u0, 0.0)
 
