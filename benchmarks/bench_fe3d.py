@@ -40,10 +40,19 @@ Sections (run all, or name some on the command line)::
     python benchmarks/bench_fe3d.py factorreuse --materials mr --thickness 0.8  # slowest case
 
 Forces in N, gaps in mm.  t = 1.4 mm, Mooney-Rivlin, unless stated.  Timings are wall-clock on
-whatever machine runs this (noisy when shared).
+whatever machine runs this (noisy when shared), on one core: the numerical libraries get one
+thread each unless the caller sets ``OMP_NUM_THREADS`` / ``OPENBLAS_NUM_THREADS`` /
+``MKL_NUM_THREADS`` (PARDISO is on one thread anyway; OpenBLAS's default of one per core gave
+no gain on the 3D model, 46 s against 42 s for the stick-anchor test, and made two runs side by
+side 2-3x slower).
 """
 
 from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")  # before numpy loads OpenBLAS: one core per run
 
 import json
 import sys
