@@ -15,13 +15,11 @@ ROOT = Path(__file__).resolve().parents[1]
 #: one thread per core each worker ran two, and the four busy threads made the 3D tests 2-3x
 #: slower (the stick-anchor test: 42 s with one thread and 46 s with two when run alone, 123 s in
 #: the slow step beside another test). numpy (OpenBLAS) and MKL read these when they load, which
-#: is after this module: nothing imports numpy before it (checked in each worker). A value set
-#: by the caller wins.
+#: is after this module: nothing imports numpy before it (tests/test_threads.py reads the pools
+#: they opened). A value set by the caller wins.
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
-SET_HERE = tuple(v for v in THREAD_VARIABLES if v not in os.environ)
-"""The variables this module set to 1 (the others the caller set)."""
-for _var in SET_HERE:
-    os.environ[_var] = "1"
+for _var in THREAD_VARIABLES:
+    os.environ.setdefault(_var, "1")
 
 
 @pytest.fixture
@@ -71,9 +69,10 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     """Every ``slow`` test states its cost, ``@pytest.mark.slow(seconds=S)`` (measured alone
     beside the other worker, this machine), and the slow tests run longest first.
 
-    CI's slow step hands them out one by one to whichever worker is free (``--dist loadgroup``),
-    so longest-first is the classic list schedule: 627 s for the step in collection order
-    against about 550 s computed for this order. A ``slow`` test without ``seconds`` stops the
+    CI's slow step hands them out in this order to whichever worker runs short of work
+    (``--dist loadgroup --no-loadscope-reorder``; without the flag xdist orders the groups by
+    size), close to the classic longest-first list schedule: 627 s for the step in collection
+    order, 581 s in this order the same day. A ``slow`` test without ``seconds`` stops the
     collection, so a new one cannot fall to the end of the queue unnoticed.
     """
     missing = [i.nodeid for i in items if i.get_closest_marker("slow") and slow_seconds(i) is None]

@@ -17,9 +17,8 @@ keep the run inside the suite's budget):
 * a command documented to fail carries ``# expect exit N``: it must exit with exactly N (the
   page explains why), so the page changes when the behaviour does.
 
-A block that repeats an earlier block of its group verbatim is not run again (getting-started.md
-opens with README's two commands), as long as no block in between writes where it writes
-(``test_a_skipped_repeat_would_find_what_it_wrote``).
+A block that repeats an earlier block of its group verbatim and writes nothing is not run again
+(getting-started.md repeats README's install-and-test command; ``is_skipped_repeat``).
 
 The pages run in two groups, each in its own checkout (the first steps; the pages from build.md
 on, which opens with the main job), so the two can run at once; the two groups' commands write
@@ -176,31 +175,38 @@ def test_the_groups_write_to_different_tmp_folders():
     assert not named["first steps"] & named["from the main job on"], named
 
 
-def out_paths(block: str) -> set[str]:
-    """The ``--out`` / ``--out-dir`` / ``--site-dir`` targets a block names."""
-    return set(re.findall(r"--(?:out|out-dir|site-dir)[ =](\S+)", block))
+def writes(block: str) -> set[str]:
+    """The folders and files a block names as outputs: ``--out`` / ``--out-dir`` / ``--site-dir``
+    targets (normalised: ``./build/`` is ``build``), and ``build`` for a ``grasprom build``
+    without ``--out`` (its default)."""
+    found = {os.path.normpath(p) for p in re.findall(r"--(?:out|out-dir|site-dir)[ =](\S+)", block)}
+    for cmd in re.split(r"&&|;|\n", block):
+        words = cmd.split("#")[0].split()
+        if words[:2] == ["grasprom", "build"] and "--out" not in words:
+            found.add("build")
+    return found
 
 
-def test_a_skipped_repeat_would_find_what_it_wrote():
-    """A block that repeats an earlier block of its group verbatim (getting-started.md opens with
-    README's two commands) is not run again. That is only sound if no block in between writes
-    where the repeat writes: the repeat would have read, and left, the same state. README's
-    other operating point writes ``build-le/`` for that reason, not ``build/``."""
-    repeats = 0
+def is_skipped_repeat(block: str, earlier: list[str]) -> bool:
+    """A block that repeats an earlier block of its group verbatim and writes nothing is not run
+    again: it ran, and nothing it reads is different. A repeat that writes runs again (the
+    getting-started page's ``grasprom build --out build`` rebuilds README's ``build/``: the
+    one documented rebuild into a full output folder)."""
+    return block in earlier and not writes(block)
+
+
+def test_only_a_repeat_that_writes_nothing_is_skipped():
+    skipped = []
     for pages in page_groups().values():
         blocks = [b for p in pages for b in bash_blocks(p)]
-        for j, block in enumerate(blocks):
-            if block not in blocks[:j]:
-                continue
-            repeats += 1
-            i = blocks.index(block)
-            written = set().union(*(out_paths(b) for b in blocks[i + 1 : j]))
-            assert not written & out_paths(block), (block, written)
-    assert repeats == 2  # getting-started's install-and-build and install-and-test
-    assert out_paths("grasprom build --out build-le --x 1\nmkdocs build --site-dir /tmp/s") == {
+        skipped += [b for j, b in enumerate(blocks) if is_skipped_repeat(b, blocks[:j])]
+    assert [b.strip() for b in skipped] == ['pip install -e ".[dev]" && python -m pytest -q']
+    assert writes("grasprom build --out ./build-le/ --x 1\nmkdocs build --site-dir /tmp/s") == {
         "build-le",
         "/tmp/s",
     }
+    assert writes("pip install -e . && grasprom build --material le  # no --out") == {"build"}
+    assert writes("pip install -e . && python -m pytest -q") == set()
 
 
 @pytest.mark.parametrize(
@@ -215,12 +221,12 @@ def test_every_documented_command_runs_as_written(tmp_path, group):
     work.mkdir()
     copy_checkout(work)
     failures = []
-    done = set()
+    done: list[str] = []
     for page in page_groups()[group]:
         for i, block in enumerate(bash_blocks(page), 1):
-            if block in done:  # a verbatim repeat: it ran, and what it reads is unchanged
+            if is_skipped_repeat(block, done):
                 continue
-            done.add(block)
+            done.append(block)
             code, out = _run_block(as_script(block), work, tmp_path / f"{page.stem}_{i}.log")
             if code != 0:
                 failures.append(f"{page.name} block {i} (exit {code}):\n{block}\n{out[-3000:]}")

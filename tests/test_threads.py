@@ -2,7 +2,7 @@
 
 Two xdist workers share the machine's two cores; a library that starts one thread per core in
 each worker puts four busy threads on two cores, and the 3D tests of the slow step took 2-3x as
-long (1084 s for the step against 482 s). These tests read the thread pools the libraries
+long (1084 s for the step against 627 s). These tests read the thread pools the libraries
 actually opened (threadpoolctl), in a worker and in a child process, rather than the
 environment variables alone.
 """
@@ -19,7 +19,7 @@ from threadpoolctl import threadpool_info
 
 from grasprom.fe.linsolve import pardiso_available
 from grasprom.fe.sweep import BLAS_THREAD_VARS
-from tests.conftest import SET_HERE, THREAD_VARIABLES
+from tests.conftest import THREAD_VARIABLES
 
 #: threadpoolctl's ``internal_api`` -> the variable that sets its pool's size.
 POOL_VARIABLE = {
@@ -29,14 +29,22 @@ POOL_VARIABLE = {
 }
 
 
-def _check(info: list[dict]) -> None:
-    """Every pool of a known library has the size its variable sets: 1 where conftest set it."""
+def _check(info: list[dict], mkl: bool) -> None:
+    """Every pool of a known library has the size its variable sets (1 unless the caller set
+    it). On this 2-core machine a library loaded before the setting opens 2 and fails this."""
     pools = [(p["internal_api"], p["num_threads"], p["filepath"]) for p in info]
-    assert {"openblas", "mkl"} <= {api for api, _, _ in pools}, pools
+    expected = {"openblas", "mkl"} if mkl else {"openblas"}
+    assert expected <= {api for api, _, _ in pools}, pools
     for api, n, path in pools:
         if api in POOL_VARIABLE:
             assert n == int(os.environ[POOL_VARIABLE[api]]), (api, n, path)
-            assert n == 1 or POOL_VARIABLE[api] not in SET_HERE, (api, n, path)
+
+
+def _mkl() -> bool:
+    """Whether MKL (pypardiso, a dev dependency on x86-64) is there; required under CI=true."""
+    if os.environ.get("CI") == "true":
+        assert pardiso_available()
+    return pardiso_available()
 
 
 def test_the_conftest_sets_what_the_sweep_sets_for_its_workers():
@@ -45,8 +53,8 @@ def test_the_conftest_sets_what_the_sweep_sets_for_its_workers():
 
 def test_the_worker_pools_have_the_set_size():
     np.ones((200, 200)) @ np.ones((200, 200))  # OpenBLAS is loaded and used
-    assert pardiso_available()  # loads MKL (pypardiso is a dev dependency)
-    _check(threadpool_info())
+    mkl = _mkl()  # loads MKL first
+    _check(threadpool_info(), mkl)
 
 
 def test_a_child_process_inherits_the_size():
@@ -56,4 +64,5 @@ def test_a_child_process_inherits_the_size():
         "print(json.dumps(threadpool_info()))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    _check(json.loads(out.stdout))
+    mkl = _mkl()
+    _check(json.loads(out.stdout), mkl)
