@@ -72,7 +72,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     CI's slow step hands them out in this order to whichever worker runs short of work
     (``--dist loadgroup --no-loadscope-reorder``; without the flag xdist orders the groups by
     size), close to the classic longest-first list schedule: 627 s for the step in collection
-    order, 581 s in this order the same day. A ``slow`` test without ``seconds`` stops the
+    order, 499 s in this order the same day. A ``slow`` test without ``seconds`` stops the
     collection, so a new one cannot fall to the end of the queue unnoticed.
     """
     missing = [i.nodeid for i in items if i.get_closest_marker("slow") and slow_seconds(i) is None]

@@ -212,8 +212,8 @@ def test_only_a_repeat_that_writes_nothing_is_skipped():
 @pytest.mark.parametrize(
     "group",
     [
-        pytest.param("first steps", marks=pytest.mark.slow(seconds=252)),
-        pytest.param("from the main job on", marks=pytest.mark.slow(seconds=158)),
+        pytest.param("first steps", marks=pytest.mark.slow(seconds=207)),
+        pytest.param("from the main job on", marks=pytest.mark.slow(seconds=134)),
     ],
 )
 def test_every_documented_command_runs_as_written(tmp_path, group):

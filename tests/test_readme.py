@@ -60,7 +60,7 @@ def _run(cmd: str, cwd: Path, env: dict[str, str], timeout: float) -> subprocess
     return res
 
 
-@pytest.mark.slow(seconds=114)
+@pytest.mark.slow(seconds=109)
 def test_readme_commands_in_fresh_venv(tmp_path):
     main_cmd, test_cmd = readme_commands()
     repo = tmp_path / "repo"

@@ -30,7 +30,7 @@ def _run(cmd: list[str], cwd: Path, env: dict[str, str], timeout: float) -> str:
     return res.stdout
 
 
-@pytest.mark.slow(seconds=31)
+@pytest.mark.slow(seconds=37)
 def test_wheel_installs_and_builds_from_another_directory(tmp_path):
     repo = tmp_path / "repo"
     repo.mkdir()

@@ -111,7 +111,7 @@ def test_missing_ccx_is_a_clear_error(tmp_path):
         run_ccx(SHORT, tmp_path, 20.0, executable="no-such-ccx-here")
 
 
-@pytest.mark.slow(seconds=82)
+@pytest.mark.slow(seconds=71)
 def test_3d_model_bends_the_tube_as_calculix_does(tmp_path):
     """Bending (gaps 29.5-20 mm), frictionless, mr t = 1.4 mm, 60 mm tube, the default cross-
     section: the 3D model within 2.5 % of CalculiX at each of its 20 increments (measured max
@@ -145,7 +145,7 @@ SLICE = CaseSpec3D(
 )
 
 
-@pytest.mark.slow(seconds=38)
+@pytest.mark.slow(seconds=31)
 def test_2d_model_folds_the_ring_as_calculix_does_in_plane_strain(tmp_path):
     """The 2D model (P2B/P1, its default mesh) against CalculiX's plane-strain slice, mr
     t = 1.4 mm, frictionless, from bending to the fold's approach to the crease band (gaps

@@ -296,7 +296,7 @@ def test_stick_anchors_at_the_touch_point_make_the_2d_force_independent_of_the_s
     assert np.max(np.abs(proj_coarse / touch_fine - 1)) > 4e-3
 
 
-@pytest.mark.slow(seconds=51)
+@pytest.mark.slow(seconds=53)
 @pytest.mark.xdist_group("stick_vs_frictionless_2d")  # one fixture run
 def test_stick_contact_2d_against_the_independent_model(stick_vs_frictionless):
     """Stick (Guachi et al.'s no sliding) vs frictionless in 2D.
@@ -331,7 +331,7 @@ def test_contact_law_is_validated():
         run_case(CaseSpec("mr", 1.4, contact="glue"))
 
 
-@pytest.mark.slow(seconds=51)
+@pytest.mark.slow(seconds=53)
 @pytest.mark.xdist_group("stick_vs_frictionless_2d")  # one fixture run
 def test_both_contact_laws_complete(stick_vs_frictionless):
     _, res = stick_vs_frictionless

@@ -321,7 +321,7 @@ def test_coarsened_far_zone_follows_the_one_cross_section_tube():
         assert 1.0 <= fz / ff < 1.012
 
 
-@pytest.mark.slow(seconds=55)
+@pytest.mark.slow(seconds=49)
 def test_semi_membrane_reference_reduces_to_ring_theory():
     """A punch much longer than the n = 2 decay length: per unit length -> 2D ring theory
     (plus the punch-end loads spreading beyond it, ~ 2 / (beta_2 2 a) = 10 % here)."""
@@ -787,7 +787,7 @@ def test_a_cut_newton_step_adds_the_nodes_its_full_step_would_push_through():
     np.testing.assert_allclose(new.anchor[lift, 2], d.X[on[lift], 2], atol=1e-12)
 
 
-@pytest.mark.slow(seconds=40)
+@pytest.mark.slow(seconds=31)
 def test_3d_crease_is_placed_where_the_work_balances_the_strain_energy():
     """Maxwell's rule in 3D, checked by the work-energy balance (stick: the jaw moves along its
     normal, nothing dissipates, so the jaw's work equals the strain energy on an equilibrium
@@ -856,7 +856,7 @@ def test_3d_crease_is_placed_where_the_work_balances_the_strain_energy():
     assert e1 == pytest.approx(e0, rel=1e-3)
 
 
-@pytest.mark.slow(seconds=53)
+@pytest.mark.slow(seconds=55)
 def test_unloading_finds_from_below_the_crease_maxwell_places_from_above():
     """The same snapping case as above, three ways: followed plainly (it snaps at 5.06 mm and
     stays smooth down to it), with Maxwell's placement (the crease continued back from the
@@ -931,7 +931,7 @@ def _band_2d(closed_gap: float, gaps) -> dict:
 BAND_MESH = MeshSpec3D(n_layers=4, n_circ=24, n_jaw=1, n_free=0, grading=8.0)
 
 
-@pytest.mark.slow(seconds=112)
+@pytest.mark.slow(seconds=100)
 def test_plane_strain_3d_follows_the_2d_model_through_the_crease_band():
     """The 3D element (Q2/P1 with a 5 % pointwise share of the volumetric energy, the default
     ``MeshSpec3D.beta``) in plane strain on a cross-section graded toward the fold, against the
@@ -1042,7 +1042,7 @@ def test_touch_points_are_where_the_path_meets_the_jaw():
     np.testing.assert_allclose(moving, [[0.3, 0.0, 1.0]], atol=1e-9)
 
 
-@pytest.mark.slow(seconds=52)
+@pytest.mark.slow(seconds=56)
 def test_stick_anchors_at_the_touch_point_make_the_force_independent_of_the_step(monkeypatch):
     """Stick anchors at the touch point along the step against the old rule (the projection of
     the end-of-step position) as the second formulation: both converge to one force as the

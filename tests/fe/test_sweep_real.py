@@ -63,7 +63,7 @@ def test_kill_and_resume_loses_nothing_real_fe(tmp_path):
     assert _hashes(clean) == after  # bit-identical to an uninterrupted sweep
 
 
-@pytest.mark.slow(seconds=22)
+@pytest.mark.slow(seconds=20)
 def test_dask_cluster_equals_process_pool_real_fe(tmp_path):
     from dask.distributed import LocalCluster
 
