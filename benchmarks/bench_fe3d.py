@@ -49,10 +49,9 @@ side 2-3x slower).
 
 from __future__ import annotations
 
-import os
+from grasprom.threads import default_blas_threads
 
-for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")  # before numpy loads OpenBLAS: one core per run
+default_blas_threads(1)  # before numpy loads OpenBLAS: one core per run
 
 import json
 import sys

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import pytest
 
+from grasprom.threads import default_blas_threads
+
 ROOT = Path(__file__).resolve().parents[1]
 
 #: One thread per BLAS / OpenMP / MKL pool, in the test processes and every child they start.
@@ -17,9 +19,7 @@ ROOT = Path(__file__).resolve().parents[1]
 #: the slow step beside another test). numpy (OpenBLAS) and MKL read these when they load, which
 #: is after this module: nothing imports numpy before it (tests/test_threads.py reads the pools
 #: they opened). A value set by the caller wins.
-THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
-for _var in THREAD_VARIABLES:
-    os.environ.setdefault(_var, "1")
+default_blas_threads(1)
 
 
 @pytest.fixture

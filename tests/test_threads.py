@@ -15,11 +15,11 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 from threadpoolctl import threadpool_info
 
 from grasprom.fe.linsolve import pardiso_available
-from grasprom.fe.sweep import BLAS_THREAD_VARS
-from tests.conftest import THREAD_VARIABLES
+from grasprom.threads import BLAS_THREAD_VARS, default_blas_threads
 
 #: threadpoolctl's ``internal_api`` -> the variable that sets its pool's size.
 POOL_VARIABLE = {
@@ -47,8 +47,14 @@ def _mkl() -> bool:
     return pardiso_available()
 
 
-def test_the_conftest_sets_what_the_sweep_sets_for_its_workers():
-    assert set(THREAD_VARIABLES) == set(BLAS_THREAD_VARS)
+def test_the_callers_value_wins_and_a_count_below_one_is_refused(monkeypatch):
+    for var in BLAS_THREAD_VARS:
+        monkeypatch.delenv(var, raising=False)
+    monkeypatch.setenv("MKL_NUM_THREADS", "3")
+    default_blas_threads(2)
+    assert [os.environ[v] for v in BLAS_THREAD_VARS] == ["2", "2", "3"]
+    with pytest.raises(ValueError, match="n must be >= 1"):
+        default_blas_threads(0)
 
 
 def test_the_worker_pools_have_the_set_size():

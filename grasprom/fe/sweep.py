@@ -44,6 +44,7 @@ from grasprom.fe.atomicio import AtomicWriteError
 from grasprom.fe.grid import SweepInputError, check_out_dir
 from grasprom.fe.model2d import CaseResult, CaseSpec
 from grasprom.fe.provenance import now_iso, provenance
+from grasprom.threads import BLAS_THREAD_VARS, default_blas_threads
 
 Runner = Callable[[CaseSpec], CaseResult]
 
@@ -696,10 +697,6 @@ def _record_run(
     )
 
 
-BLAS_THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
-"""Environment variables that size the BLAS thread pools of numpy/scipy in a new process."""
-
-
 @contextlib.contextmanager
 def _worker_blas_threads(n: int | None):
     """Environment of the pool workers spawned inside: ``n`` BLAS threads each (None: as is).
@@ -710,8 +707,7 @@ def _worker_blas_threads(n: int | None):
     """
     saved = {k: os.environ.get(k) for k in BLAS_THREAD_VARS}
     if n is not None:
-        for k in BLAS_THREAD_VARS:
-            os.environ.setdefault(k, str(n))
+        default_blas_threads(n)
     try:
         yield
     finally:
